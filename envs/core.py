@@ -1,0 +1,201 @@
+"""The batched game: N independent games of 3D cooperative target defense as numpy arrays.
+
+Every adapter (PettingZoo, RLlib) and every evaluation loop steps this one core, so the
+rules exist once. Arrays are indexed ``[game, agent, ...]`` with agents in the order of
+``envs.agents.AGENTS`` (attacker, targeter, defender).
+
+No auto-reset: a finished game stays frozen (its rewards are 0, its ``outcome`` kept)
+until the caller resets it with ``reset_games``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs import rewards
+from envs.agents import ATTACKER, DEFENDER, TARGETER, Outcome
+from envs.config import GameConfig
+from envs.geometry import angle_between, first_contact, lead_intercept, norm
+from envs.kinematics import heading_vectors, turn, move, wrap_to_pi
+from envs.observations import global_state, observe
+from envs.scenarios import sample_positions
+
+NUM_AGENTS = 3
+ACTION_SIZE = 2
+# Tie order of events within one step: A's capture first (the team must catch A *before*
+# T is caught), then T at the terminal, then D's capture of A.
+EVENT_ORDER = np.array([Outcome.CAPTURED, Outcome.TERMINAL_REACHED, Outcome.ATTACKER_INTERCEPTED])
+RUNNING, TIMEOUT, CAPTURED = int(Outcome.RUNNING), int(Outcome.TIMEOUT), int(Outcome.CAPTURED)
+
+
+@dataclass
+class StepResult:
+    """What one step of the batch returns (arrays over games)."""
+
+    rewards: np.ndarray  # (N, 3) float
+    done: np.ndarray  # (N,) bool: the game ended on this step
+    outcome: np.ndarray  # (N,) int: an ``Outcome`` value, RUNNING if still going
+    event_fraction: np.ndarray  # (N,) float: when in the step the ending event happened (1 for timeout)
+
+
+class BatchedGame:
+    """N games stepped together. See ``envs.pettingzoo_env`` for the rules in one place."""
+
+    def __init__(self, config: GameConfig, num_games: int):
+        self.config = config
+        self.num_games = num_games
+        self.speeds = np.asarray(config.speeds)
+        # The axis length caps the heading change per step at v / L (envs.kinematics).
+        self.max_turn = self.speeds / config.axis_length if config.axis_length > 0 else np.full(3, np.inf)
+        self.event_radii = np.array([config.attacker_radius, config.terminal_sphere_radius, config.defender_radius])
+        self.positions = np.zeros((num_games, NUM_AGENTS, 3))
+        self.headings = np.zeros((num_games, NUM_AGENTS, 2))
+        self.steps = np.zeros(num_games, dtype=np.int64)
+        self.time_limit = np.ones(num_games, dtype=np.int64)
+        self.outcome = np.zeros(num_games, dtype=np.int64)
+        # Per-game memory of the attacker rewards: T's velocity over the last step
+        # (method 2's reference), lambda of the last step and the over-chasing count (method 3).
+        self.targeter_velocity = np.zeros((num_games, 3))
+        self.collision_distance = np.zeros(num_games)
+        self.overchase_count = np.zeros(num_games, dtype=np.int64)
+
+    # ----------------------------------------------------------------- reset
+    def reset(self, rng: np.random.Generator | None = None, positions: np.ndarray | None = None) -> None:
+        """Start every game: from ``positions`` ``(N, 3, 3)`` if given, else drawn from ``rng``."""
+        self.reset_games(np.arange(self.num_games), rng=rng, positions=positions)
+
+    def reset_games(
+        self, games: np.ndarray, rng: np.random.Generator | None = None, positions: np.ndarray | None = None
+    ) -> None:
+        """Start the games at indices ``games`` anew."""
+        games = np.asarray(games)
+        if positions is None:
+            if rng is None:
+                raise ValueError("reset needs either a generator `rng` or starting `positions`")
+            positions = sample_positions(self.config.scenario, rng, len(games))
+        positions = np.asarray(positions, dtype=np.float64)
+        if positions.shape != (len(games), NUM_AGENTS, 3):
+            raise ValueError(f"starting positions must have shape ({len(games)}, 3, 3), got {positions.shape}")
+        self.positions[games] = positions
+        self.headings[games] = 0.0  # the paper's initial angles: yaw = pitch = 0
+        self.steps[games] = 0
+        start_distance = norm(positions[:, TARGETER])
+        self.time_limit[games] = np.ceil(
+            self.config.time_limit_factor * start_distance / self.config.v_targeter
+        ).astype(np.int64).clip(min=1)
+        self.outcome[games] = Outcome.RUNNING
+        velocity = self.config.v_targeter * heading_vectors(self.headings[games, TARGETER])
+        self.targeter_velocity[games] = velocity
+        self.collision_distance[games] = self._collision_distance(positions, velocity)
+        self.overchase_count[games] = 0
+
+    # ----------------------------------------------------------------- views
+    @property
+    def active(self) -> np.ndarray:
+        return self.outcome == RUNNING
+
+    @property
+    def time_left(self) -> np.ndarray:
+        """Fraction of the time limit still to play, in ``[0, 1]``."""
+        return 1.0 - self.steps / self.time_limit
+
+    def observations(self) -> list[np.ndarray]:
+        """``[attacker, targeter, defender]`` observations, each ``(N, size)``."""
+        return observe(self.config, self.positions, self.headings, self.time_left)
+
+    def global_state(self) -> np.ndarray:
+        return global_state(self.config, self.positions, self.headings, self.time_left)
+
+    def _collision_distance(self, positions: np.ndarray, targeter_velocity: np.ndarray) -> np.ndarray:
+        """Method 3's ``lambda``: distance from A to its lead-intercept point on T."""
+        attacker = positions[:, ATTACKER]
+        aim = lead_intercept(attacker, self.config.v_attacker, positions[:, TARGETER], targeter_velocity)
+        return norm(aim - attacker)
+
+    # ----------------------------------------------------------------- step
+    def commanded_headings(self, actions: np.ndarray) -> np.ndarray:
+        """Headings ``(N, 3, 2)`` at the end of the step: the actions within the turn limits."""
+        actions = np.asarray(actions, dtype=np.float64)
+        if actions.shape != (self.num_games, NUM_AGENTS, ACTION_SIZE):
+            raise ValueError(
+                f"actions must have shape ({self.num_games}, {NUM_AGENTS}, {ACTION_SIZE}), got {actions.shape}"
+            )
+        if not np.all(np.isfinite(actions)):
+            raise ValueError("actions contain NaN or infinity")
+        cfg = self.config
+        if cfg.action_mode == "relative":
+            clipped = np.clip(actions, -1.0, 1.0)
+            yaw_change, pitch_change = clipped[..., 0] * cfg.max_yaw_change, clipped[..., 1] * cfg.max_pitch_change
+        else:  # absolute: the desired heading, reached as far as the turn limits allow
+            yaw_change = wrap_to_pi(actions[..., 0] - self.headings[..., 0])
+            pitch_change = actions[..., 1] - self.headings[..., 1]
+        return turn(self.headings, yaw_change, pitch_change, cfg.max_yaw_change, cfg.max_pitch_change, self.max_turn)
+
+    def step(self, actions: np.ndarray) -> StepResult:
+        """Advance every running game by one step; finished games stay as they are."""
+        cfg = self.config
+        headings = self.commanded_headings(actions)
+        running = self.active
+        before = self.positions
+        after = move(before, self.headings, headings, self.speeds)
+
+        # Events, swept over the step (relative positions move along the chords): A on T,
+        # T on the terminal at the origin, D on A, in EVENT_ORDER.
+        pairs_before = np.stack((before[:, TARGETER] - before[:, ATTACKER], before[:, TARGETER], before[:, ATTACKER] - before[:, DEFENDER]), axis=1)
+        pairs_after = np.stack((after[:, TARGETER] - after[:, ATTACKER], after[:, TARGETER], after[:, ATTACKER] - after[:, DEFENDER]), axis=1)
+        contact = first_contact(pairs_before, pairs_after, self.event_radii)
+        first = np.argmin(contact, axis=1)  # argmin keeps the first on ties: EVENT_ORDER
+        event_fraction = contact[np.arange(self.num_games), first]
+        event = EVENT_ORDER[first]
+        steps = self.steps + 1
+        timeout = steps >= self.time_limit
+        outcome = np.where(np.isfinite(event_fraction), event, np.where(timeout, TIMEOUT, RUNNING))
+        outcome = np.where(running, outcome, self.outcome)
+        event_fraction = np.where(np.isfinite(event_fraction), event_fraction, 1.0)
+
+        reward = self._rewards(before, after)
+        done = running & (outcome != RUNNING)
+        if cfg.terminal_reward:
+            attacker_won = (outcome == CAPTURED) | (outcome == TIMEOUT)
+            sign = np.where(attacker_won, 1.0, -1.0)[:, None] * np.array([1.0, -1.0, -1.0])
+            reward = reward + np.where(done[:, None], cfg.terminal_reward * sign, 0.0)
+        reward = np.where(running[:, None], reward, 0.0)
+
+        keep = ~running
+        self.positions = np.where(keep[:, None, None], before, after)
+        self.headings = np.where(keep[:, None, None], self.headings, headings)
+        self.steps = np.where(running, steps, self.steps)
+        self.outcome = outcome
+        return StepResult(reward, done, outcome, event_fraction)
+
+    def _rewards(self, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+        """Rewards ``(N, 3)`` of the step ``before -> after``; updates the attacker's memory."""
+        cfg = self.config
+        gamma_steps = self.time_limit.astype(np.float64)
+        running = self.active
+        d_at = norm(after[:, ATTACKER] - after[:, TARGETER])
+        d_da = norm(after[:, DEFENDER] - after[:, ATTACKER])
+        velocity = after[:, TARGETER] - before[:, TARGETER]
+
+        if cfg.attacker_reward == 1:
+            r_a = rewards.attacker_method1(
+                norm(before[:, ATTACKER] - before[:, TARGETER]), d_at,
+                norm(before[:, ATTACKER] - before[:, DEFENDER]), d_da, gamma_steps,
+            )
+        elif cfg.attacker_reward == 2:
+            aim = lead_intercept(before[:, ATTACKER], cfg.v_attacker, before[:, TARGETER], self.targeter_velocity)
+            offset = angle_between(after[:, ATTACKER] - before[:, ATTACKER], aim - before[:, ATTACKER])
+            r_a = rewards.attacker_method2(offset, cfg.sigma_a, gamma_steps)
+        else:
+            collision_distance = self._collision_distance(after, velocity)
+            r_a, count = rewards.attacker_method3(
+                self.collision_distance, collision_distance, self.overchase_count, cfg.overchase_gamma, gamma_steps
+            )
+            self.collision_distance = np.where(running, collision_distance, self.collision_distance)
+            self.overchase_count = np.where(running, count, self.overchase_count)
+        self.targeter_velocity = np.where(running[:, None], velocity, self.targeter_velocity)
+
+        r_t, r_d = rewards.team_rewards(norm(after[:, TARGETER]), d_at, d_da, cfg.w_t1, cfg.w_t2, gamma_steps)
+        return np.stack((r_a, r_t, r_d), axis=1)

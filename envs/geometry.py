@@ -1,0 +1,68 @@
+"""Geometry shared by the rules and the scripted players (all batched over leading axes)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def norm(v: np.ndarray) -> np.ndarray:
+    return np.sqrt((v * v).sum(axis=-1))
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    """``v / |v|``, and zero where ``v`` is zero."""
+    n = norm(v)[..., None]
+    return np.divide(v, n, out=np.zeros_like(v), where=n > 1e-12)
+
+
+def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Angle in ``[0, pi]`` between vectors ``(..., 3)``; 0 where either is zero."""
+    cos = np.clip((unit(u) * unit(v)).sum(axis=-1), -1.0, 1.0)
+    return np.arccos(cos)
+
+
+def lead_intercept(chaser: np.ndarray, speed: float, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """Point where a chaser at ``speed`` meets a target moving at constant ``velocity``.
+
+    Solves ``|r + u t| = s t`` with ``r = target - chaser``:
+    ``t* = (r.u + sqrt((r.u)^2 + (s^2 - |u|^2) |r|^2)) / (s^2 - |u|^2)``, the one
+    positive root when ``s > |u|``. Returns ``target + velocity * t*``.
+    """
+    r = target - chaser
+    ru = (r * velocity).sum(axis=-1)
+    margin = speed**2 - (velocity * velocity).sum(axis=-1)  # > 0 since the chaser is faster
+    t_star = (ru + np.sqrt(ru * ru + margin * (r * r).sum(axis=-1))) / margin
+    return target + velocity * t_star[..., None]
+
+
+def first_contact(start: np.ndarray, end: np.ndarray, radius: float | np.ndarray) -> np.ndarray:
+    """Earliest fraction of the step at which a relative position comes within ``radius``.
+
+    The relative position moves on the segment ``start -> end`` (the bodies' chords).
+    Solves ``|start + tau (end - start)| = radius`` for the smallest ``tau`` in
+    ``[0, 1]``. This catches every pass whose closest point
+    ``tau = clip(-start.(end - start) / |end - start|^2, 0, 1)`` lies inside the
+    radius, even when both ends of the step are outside it (a head-on pass).
+
+    Returns ``tau`` where contact happens, ``inf`` where it does not.
+    """
+    delta = end - start
+    a = (delta * delta).sum(axis=-1)
+    b = (start * delta).sum(axis=-1)
+    c = (start * start).sum(axis=-1) - radius * radius
+    disc = b * b - a * c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = (-b - np.sqrt(np.maximum(disc, 0.0))) / a
+    hit = (disc >= 0) & (a > 0) & (tau >= 0) & (tau <= 1)
+    return np.where(c <= 0, 0.0, np.where(hit, tau, np.inf))
+
+
+def apollonius_ball(slow: np.ndarray, fast: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray]:
+    """Ball of points the slower player (speed ratio ``k < 1``) reaches before the faster one.
+
+    Centre ``(x_slow - k^2 x_fast) / (1 - k^2)``, radius ``k |x_slow - x_fast| / (1 - k^2)``.
+    """
+    denom = 1.0 - k * k
+    centre = (slow - k * k * fast) / denom
+    radius = k * norm(slow - fast) / denom
+    return centre, radius

@@ -1,0 +1,112 @@
+"""What each agent sees, and the global state of the centralized critic.
+
+``paper`` (the paper's section 4.1 state, the same for every agent):
+
+| index | meaning                      |
+| ----- | ---------------------------- |
+| 0-2   | A position                   |
+| 3-5   | D position                   |
+| 6-8   | T position                   |
+| 9-10  | A yaw, pitch (radians)       |
+| 11-12 | D yaw, pitch                 |
+| 13-14 | T yaw, pitch                 |
+| 15-16 | T and D only: role one-hot (targeter, defender) |
+
+The paper trains T and D as two agents; our shared team policy needs the role to tell
+them apart, so T and D get two more numbers.
+
+``rich`` (agent-centred, lengths divided by ``position_scale``):
+
+| index | meaning                                                   |
+| ----- | --------------------------------------------------------- |
+| 0-2   | own position                                              |
+| 3-5   | own heading (unit vector)                                 |
+| 6-8   | first other: relative position (other - own)              |
+| 9     | first other: distance                                     |
+| 10-12 | first other: heading (unit vector)                        |
+| 13-19 | second other: the same seven numbers                      |
+| 20-22 | terminal relative to own position                         |
+| 23    | distance to the terminal                                  |
+| 24    | fraction of the time limit left, 1 at the start           |
+| 25-26 | T and D only: role one-hot (targeter, defender)           |
+
+"Others" come opponent first: A sees (T, D), T sees (A, D), D sees (A, T).
+
+Global state (critic input, 22 numbers): positions of A, T, D (9, scaled), heading unit
+vectors of A, T, D (9), distances A-T, D-A, T-terminal (3, scaled), time left (1).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.agents import ATTACKER, DEFENDER, TARGETER
+from envs.config import GameConfig
+from envs.geometry import norm
+from envs.kinematics import heading_vectors
+
+PAPER_SIZE = 15
+RICH_SIZE = 25
+ROLE_SIZE = 2
+GLOBAL_STATE_SIZE = 22
+# Whom each agent sees first and second: opponent first.
+OTHERS = {ATTACKER: (TARGETER, DEFENDER), TARGETER: (ATTACKER, DEFENDER), DEFENDER: (ATTACKER, TARGETER)}
+ROLE_ONE_HOT = {TARGETER: (1.0, 0.0), DEFENDER: (0.0, 1.0)}
+
+
+def observation_size(config: GameConfig, agent: int) -> int:
+    base = PAPER_SIZE if config.observation == "paper" else RICH_SIZE
+    return base if agent == ATTACKER else base + ROLE_SIZE
+
+
+def _with_role(obs: np.ndarray, agent: int) -> np.ndarray:
+    if agent == ATTACKER:
+        return obs
+    role = np.broadcast_to(np.asarray(ROLE_ONE_HOT[agent]), (obs.shape[0], ROLE_SIZE))
+    return np.concatenate((obs, role), axis=1)
+
+
+def observe(config: GameConfig, positions: np.ndarray, headings: np.ndarray, time_left: np.ndarray) -> list[np.ndarray]:
+    """Observations ``[attacker, targeter, defender]``, each ``(N, size)`` float32."""
+    if config.observation == "paper":
+        shared = np.concatenate(
+            (
+                positions[:, ATTACKER],
+                positions[:, DEFENDER],
+                positions[:, TARGETER],
+                headings[:, ATTACKER],
+                headings[:, DEFENDER],
+                headings[:, TARGETER],
+            ),
+            axis=1,
+        )
+        return [_with_role(shared, agent).astype(np.float32) for agent in (ATTACKER, TARGETER, DEFENDER)]
+
+    scaled = positions / config.position_scale
+    vectors = heading_vectors(headings)
+    out = []
+    for agent in (ATTACKER, TARGETER, DEFENDER):
+        own = scaled[:, agent]
+        parts = [own, vectors[:, agent]]
+        for other in OTHERS[agent]:
+            rel = scaled[:, other] - own
+            parts += [rel, norm(rel)[:, None], vectors[:, other]]
+        parts += [-own, norm(own)[:, None], time_left[:, None]]
+        out.append(_with_role(np.concatenate(parts, axis=1), agent).astype(np.float32))
+    return out
+
+
+def global_state(config: GameConfig, positions: np.ndarray, headings: np.ndarray, time_left: np.ndarray) -> np.ndarray:
+    """The centralized critic's input ``(N, 22)`` float32."""
+    scaled = positions / config.position_scale
+    distances = np.stack(
+        (
+            norm(scaled[:, ATTACKER] - scaled[:, TARGETER]),
+            norm(scaled[:, DEFENDER] - scaled[:, ATTACKER]),
+            norm(scaled[:, TARGETER]),
+        ),
+        axis=1,
+    )
+    n = positions.shape[0]
+    parts = (scaled.reshape(n, 9), heading_vectors(headings).reshape(n, 9), distances, time_left[:, None])
+    return np.concatenate(parts, axis=1).astype(np.float32)

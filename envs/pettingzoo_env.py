@@ -1,0 +1,119 @@
+"""PettingZoo ``ParallelEnv`` of one game of 3D cooperative target defense."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pettingzoo import ParallelEnv
+
+from envs.agents import AGENTS
+from envs.config import GameConfig
+from envs.single import SingleGame, state_space
+
+
+class TargetDefenseEnv(ParallelEnv):
+    """Attacker A chases targeter T, which flies to the terminal while defender D guards it.
+
+    ## Description
+    The three-agent game of ``shared/paper.md`` in 3D, as fixed by ``shared/design.md``.
+    All rules live in ``envs.core.BatchedGame``; this class is the API adapter.
+
+    ## Action Space (per agent)
+    ``action_mode: relative`` (default), ``Box(-1, 1, (2,))``:
+
+    | index | meaning                              | min | max |
+    | ----- | ------------------------------------ | --- | --- |
+    | 0     | yaw change / ``max_yaw_change``      | -1  | 1   |
+    | 1     | pitch change / ``max_pitch_change``  | -1  | 1   |
+
+    ``action_mode: absolute`` (the paper's), the desired heading, reached as far as the
+    turn limits allow this step:
+
+    | index | meaning | min   | max   |
+    | ----- | ------- | ----- | ----- |
+    | 0     | yaw     | 0     | 2 pi  |
+    | 1     | pitch   | -pi/2 | pi/2  |
+
+    Both modes reach the same headings. Values outside the box are clipped; NaN or a
+    wrong shape raise ``ValueError``.
+
+    ## Observation Space
+    ``Box(-inf, inf)``; layouts ``paper`` (15 numbers, 17 for T and D) and ``rich`` (25,
+    27 for T and D) are tabled in ``envs.observations``. ``state()`` gives the 22-number
+    global state of a centralized critic.
+
+    ## Kinematics
+    Constant speed, yaw change at most ``pi/2`` and pitch change at most ``pi/4`` per
+    step, turn radius never below ``L``; see ``envs.kinematics``.
+
+    ## Rewards
+    A: one of the paper's methods 1, 2, 3 (``attacker_reward``); T and D: Eq. 10, 11 with
+    the sign fixed (rewards are negated costs). Optional ``terminal_reward`` of +-1 to
+    the winner / loser. See ``envs.rewards``.
+
+    ## Starting State
+    Positions drawn from the scenario set ``scenario`` (``envs.scenarios``) with the
+    seeded generator, or given as ``reset(options={"positions": array (3 agents, 3)})``
+    to replay a fixed game; all headings yaw = pitch = 0.
+
+    ## Episode End
+    All are *terminations* of all three agents, with ``infos[agent]["outcome"]``:
+
+    | outcome                | winner   | condition                                          |
+    | ---------------------- | -------- | -------------------------------------------------- |
+    | ``captured``           | attacker | A within ``attacker_capture_radius`` of T          |
+    | ``timeout``            | attacker | ``Gamma`` steps without T at the terminal          |
+    | ``terminal_reached``   | team     | T within ``terminal_radius`` of ``(0, 0, 0)``      |
+    | ``attacker_intercepted`` | team   | D within ``defender_capture_radius`` of A          |
+
+    Events are checked over the whole step (swept); the earliest counts, A's capture on
+    a tie. The time limit is a termination, not a truncation: it decides the game, and
+    the ``rich`` observation carries the time left.
+
+    ## Arguments
+    Any field of ``envs.config.GameConfig`` as a keyword, or ``config=GameConfig(...)``.
+    """
+
+    metadata = {"name": "target_defense_v0", "render_modes": [], "is_parallelizable": True}
+
+    def __init__(self, config: GameConfig | None = None, **overrides: Any):
+        self.config = config or GameConfig(**overrides)
+        self.game = SingleGame(self.config)
+        self.possible_agents = list(AGENTS)
+        self.agents: list[str] = []
+        self.observation_spaces = self.game.observation_spaces
+        self.action_spaces = self.game.action_spaces
+        self.state_space = state_space()
+        self.render_mode = None
+
+    def observation_space(self, agent: str):
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent: str):
+        return self.action_spaces[agent]
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        self.agents = list(AGENTS)
+        return self.game.reset(seed, (options or {}).get("positions"))
+
+    def step(self, actions: dict[str, np.ndarray]):
+        obs, rewards, done, infos = self.game.step(actions)
+        terminations = {agent: done for agent in self.agents}
+        truncations = {agent: False for agent in self.agents}
+        if done:
+            self.agents = []
+        return obs, rewards, terminations, truncations, infos
+
+    def state(self) -> np.ndarray:
+        return self.game.state()
+
+    def render(self) -> None:
+        """Rendering is offline: see ``python -m envs.render``."""
+
+    def close(self) -> None:
+        pass
+
+
+def parallel_env(**kwargs: Any) -> TargetDefenseEnv:
+    return TargetDefenseEnv(**kwargs)

@@ -1,0 +1,95 @@
+"""Per-step rewards of ``shared/paper.md`` section 4.2, as pure functions over a batch.
+
+``gamma_steps`` is the game's time limit ``Gamma`` in steps (one per game); the paper
+divides every per-step reward by it so that an episode's return stays bounded.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Eq. 7 and Eq. 9: the change in distance that counts as progress.
+METHOD1_THRESHOLD = 0.1
+METHOD3_THRESHOLD = 0.05
+
+
+def attacker_method1(
+    d_at_prev: np.ndarray, d_at: np.ndarray, d_ad_prev: np.ndarray, d_ad: np.ndarray, gamma_steps: np.ndarray
+) -> np.ndarray:
+    """Eq. 7: reward A for closing on T and not closing on D.
+
+    ``dAT = |A_{t-1} T_{t-1}| - |A_t T_t|`` and ``dAD = |A_{t-1} D_{t-1}| - |A_t D_t|``.
+
+    | dAT > 0.1 | dAD > 0.1 | reward    |
+    | --------- | --------- | --------- |
+    | yes       | no        | 45 / Gamma |
+    | yes       | yes       | 30 / Gamma |
+    | no        | no        | 3 / Gamma  |
+    | no        | yes       | 0          |
+    """
+    closing_on_t = (d_at_prev - d_at) > METHOD1_THRESHOLD
+    closing_on_d = (d_ad_prev - d_ad) > METHOD1_THRESHOLD
+    reward = np.where(closing_on_t, np.where(closing_on_d, 30.0, 45.0), np.where(closing_on_d, 0.0, 3.0))
+    return reward / gamma_steps
+
+
+def attacker_method2(offset_angle: np.ndarray, sigma_a: float, gamma_steps: np.ndarray) -> np.ndarray:
+    """Eq. 8: reward A for moving along its reference direction.
+
+    ``offset_angle`` is ``d sigma_A``, the angle between A's direction of motion this
+    step and the reference direction (A to T's lead-intercept point, see the core).
+    With ``x = d sigma_A / sigma_a``:
+
+    | case       | reward                        |
+    | ---------- | ----------------------------- |
+    | x <= 1     | max(2 - x, 1) * 30 / Gamma    |
+    | 1 < x <= 2 | max(2 - x, 0) * 30 / Gamma    |
+    | x > 2      | max(1 - x, -2) * 30 / Gamma   |
+    """
+    x = offset_angle / sigma_a
+    score = np.where(x <= 1, np.maximum(2 - x, 1), np.where(x <= 2, np.maximum(2 - x, 0), np.maximum(1 - x, -2)))
+    return score * 30.0 / gamma_steps
+
+
+def attacker_method3(
+    lambda_prev: np.ndarray,
+    lambda_now: np.ndarray,
+    overchase_count: np.ndarray,
+    overchase_gamma: float,
+    gamma_steps: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. 9: reward A for shrinking ``lambda``, its distance to the predicted collision point.
+
+    | case                                | reward                                               |
+    | ----------------------------------- | ---------------------------------------------------- |
+    | lambda_{t-1} - lambda_t >= 0.05     | min(2 abs(dl) + 1, 2) * 10 / Gamma                   |
+    | lambda_{t-1} - lambda_t <  0.05     | -max(-2 abs(dl), -1) * 10 / Gamma - gamma ** C       |
+
+    with ``dl = lambda_t - lambda_{t-1}``. The second row is the over-chasing case: its
+    counter ``C`` is incremented first, so the first such step costs ``gamma ** 1``.
+    The paper's sign is kept as written: ``-max(-2|dl|, -1)`` is a small *positive*
+    term, and the penalty comes from ``gamma ** C`` alone.
+
+    Returns ``(reward, new_count)``.
+    """
+    change = np.abs(lambda_now - lambda_prev)
+    progress = (lambda_prev - lambda_now) >= METHOD3_THRESHOLD
+    new_count = np.where(progress, overchase_count, overchase_count + 1)
+    gain = np.minimum(2 * change + 1, 2) * 10.0 / gamma_steps
+    penalty = -np.maximum(-2 * change, -1) * 10.0 / gamma_steps - np.power(overchase_gamma, new_count)
+    return np.where(progress, gain, penalty), new_count
+
+
+def team_rewards(
+    d_tter: np.ndarray, d_at: np.ndarray, d_da: np.ndarray, w_t1: float, w_t2: float, gamma_steps: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Eq. 10 and 11 with the sign fixed: ``(r_T, r_D)``.
+
+    The paper writes the *costs* ``J_T = w_T1 d_Tter - w_T2 d_AT`` and ``J_D = d_DA``
+    that T and D minimise, then reuses them unchanged as rewards, which would pay T
+    for staying away from the terminal. We reward the negated costs:
+    ``r_T = -(w_T1 d_Tter - w_T2 d_AT) / Gamma`` and ``r_D = -d_DA / Gamma``.
+    """
+    r_t = -(w_t1 * d_tter - w_t2 * d_at) / gamma_steps
+    r_d = -d_da / gamma_steps
+    return r_t, r_d

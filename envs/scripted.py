@@ -1,0 +1,132 @@
+"""Scripted players (``shared/design.md`` section 3), each acting on the whole batch.
+
+A player maps the batched game state to the direction it wants to fly, ``(N, 3)``;
+``ScriptedPlayer.act`` turns that into an action in the game's action mode.
+
+| role     | name                      | rule                                                       |
+| -------- | ------------------------- | ---------------------------------------------------------- |
+| attacker | ``pure_pursuit``          | fly at T                                                   |
+| attacker | ``lead_intercept``        | fly at the point where T, at its current velocity, is met  |
+| attacker | ``proportional_navigation`` | turn the velocity at N times the line-of-sight rate       |
+| targeter | ``straight``              | fly at the terminal                                        |
+| targeter | ``avoid_attacker``        | fly at the terminal if it lies in T's Apollonius ball      |
+|          |                           | against A, else hide behind D (D between A and T)          |
+| defender | ``pure_pursuit``          | fly at A                                                   |
+| defender | ``bisector_intercept``    | fly to where A's straight path to T crosses the bisector   |
+|          |                           | plane of A and D (D gets there no later than A)            |
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER
+from envs.core import BatchedGame
+from envs.geometry import apollonius_ball, lead_intercept, norm, unit
+from envs.kinematics import heading_vectors, headings_of, wrap_to_pi
+
+# Proportional navigation gain (3 to 5 is the textbook range).
+NAVIGATION_GAIN = 3.0
+# How far behind D (seen from A) the avoiding targeter aims.
+SHELTER_DISTANCE = 0.3
+
+Direction = Callable[[BatchedGame], np.ndarray]
+
+
+def _velocities(game: BatchedGame) -> np.ndarray:
+    """Current velocities ``(N, 3, 3)``: speed times heading."""
+    return heading_vectors(game.headings) * game.speeds[None, :, None]
+
+
+def attacker_pure_pursuit(game: BatchedGame) -> np.ndarray:
+    return game.positions[:, TARGETER] - game.positions[:, ATTACKER]
+
+
+def attacker_lead_intercept(game: BatchedGame) -> np.ndarray:
+    a, t = game.positions[:, ATTACKER], game.positions[:, TARGETER]
+    aim = lead_intercept(a, game.config.v_attacker, t, _velocities(game)[:, TARGETER])
+    return aim - a
+
+
+def attacker_proportional_navigation(game: BatchedGame) -> np.ndarray:
+    velocity = _velocities(game)
+    los = game.positions[:, TARGETER] - game.positions[:, ATTACKER]
+    closing = velocity[:, TARGETER] - velocity[:, ATTACKER]
+    los_rate = np.cross(los, closing) / np.sum(los * los, axis=1, keepdims=True)
+    return velocity[:, ATTACKER] + NAVIGATION_GAIN * np.cross(los_rate, velocity[:, ATTACKER])
+
+
+def targeter_straight(game: BatchedGame) -> np.ndarray:
+    return -game.positions[:, TARGETER]
+
+
+def targeter_avoid_attacker(game: BatchedGame) -> np.ndarray:
+    cfg = game.config
+    a, t, d = game.positions[:, ATTACKER], game.positions[:, TARGETER], game.positions[:, DEFENDER]
+    centre, radius = apollonius_ball(t, a, cfg.v_targeter / cfg.v_attacker)
+    safe = norm(centre) < radius  # the terminal (origin) lies in T's Apollonius ball
+    shelter = d + SHELTER_DISTANCE * unit(d - a)
+    return np.where(safe[:, None], -t, shelter - t)
+
+
+def defender_pure_pursuit(game: BatchedGame) -> np.ndarray:
+    return game.positions[:, ATTACKER] - game.positions[:, DEFENDER]
+
+
+def defender_bisector_intercept(game: BatchedGame) -> np.ndarray:
+    a, t, d = game.positions[:, ATTACKER], game.positions[:, TARGETER], game.positions[:, DEFENDER]
+    path = t - a
+    offset = a - d
+    # P = A + s (T - A) with |P - A| = |P - D|  =>  s = -|A - D|^2 / (2 (A - D).(T - A)).
+    denom = 2.0 * np.sum(offset * path, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = -np.sum(offset * offset, axis=1) / denom
+    reachable = (denom < 0) & (s <= 1.0)  # the crossing lies between A and T
+    crossing = a + s[:, None] * path
+    return np.where(reachable[:, None], crossing - d, offset)
+
+
+PLAYERS: dict[str, dict[str, Direction]] = {
+    "attacker": {
+        "pure_pursuit": attacker_pure_pursuit,
+        "lead_intercept": attacker_lead_intercept,
+        "proportional_navigation": attacker_proportional_navigation,
+    },
+    "targeter": {"straight": targeter_straight, "avoid_attacker": targeter_avoid_attacker},
+    "defender": {"pure_pursuit": defender_pure_pursuit, "bisector_intercept": defender_bisector_intercept},
+}
+# The paper's training opponents of the attacker (section 5).
+PAPER_TEAM = {"targeter": "avoid_attacker", "defender": "pure_pursuit"}
+
+
+def direction_to_action(game: BatchedGame, agent: int, direction: np.ndarray) -> np.ndarray:
+    """Action ``(N, 2)`` in the game's action mode that turns ``agent`` toward ``direction``."""
+    cfg = game.config
+    current = game.headings[:, agent]
+    desired = headings_of(direction, fallback_yaw=current[:, 0])
+    if cfg.action_mode == "absolute":
+        return desired
+    yaw = wrap_to_pi(desired[:, 0] - current[:, 0]) / cfg.max_yaw_change
+    pitch = (desired[:, 1] - current[:, 1]) / cfg.max_pitch_change
+    return np.clip(np.stack((yaw, pitch), axis=1), -1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class ScriptedPlayer:
+    """A named scripted player for one agent."""
+
+    agent: str
+    name: str
+
+    def __post_init__(self) -> None:
+        if self.agent not in PLAYERS:
+            raise ValueError(f"unknown agent {self.agent!r}; expected one of {AGENTS}")
+        if self.name not in PLAYERS[self.agent]:
+            raise ValueError(f"unknown scripted {self.agent} {self.name!r}; expected one of {sorted(PLAYERS[self.agent])}")
+
+    def act(self, game: BatchedGame) -> np.ndarray:
+        direction = PLAYERS[self.agent][self.name](game)
+        return direction_to_action(game, AGENTS.index(self.agent), direction)

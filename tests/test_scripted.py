@@ -1,0 +1,78 @@
+"""Scripted players: their geometry, and the balance of the default scenarios."""
+
+import numpy as np
+import pytest
+
+from envs.agents import ATTACKER, DEFENDER, TARGETER
+from envs.config import GameConfig
+from envs.core import BatchedGame
+from envs.geometry import apollonius_ball, lead_intercept, norm
+from envs.match import play, scripted_players
+from envs.scenarios import evaluation_scenarios
+from envs.scripted import PAPER_TEAM, PLAYERS, ScriptedPlayer, defender_bisector_intercept, targeter_avoid_attacker
+
+
+def test_lead_intercept_meets_a_constant_velocity_target():
+    rng = np.random.default_rng(0)
+    chaser, target = rng.normal(size=(100, 3)), rng.normal(size=(100, 3))
+    velocity = rng.normal(size=(100, 3))
+    velocity *= 0.13 / np.linalg.norm(velocity, axis=1, keepdims=True)
+    aim = lead_intercept(chaser, 0.18, target, velocity)
+    t_chaser = norm(aim - chaser) / 0.18
+    t_target = norm(aim - target) / 0.13
+    np.testing.assert_allclose(t_chaser, t_target, rtol=1e-9)
+
+
+def test_apollonius_ball_boundary_is_equal_time():
+    slow, fast, k = np.array([[1.0, 0, 0]]), np.array([[-1.0, 0, 0]]), 0.5
+    centre, radius = apollonius_ball(slow, fast, k)
+    point = centre + radius[:, None] * np.array([[0.0, 1.0, 0.0]])
+    assert norm(point - slow)[0] == pytest.approx(k * norm(point - fast)[0])
+
+
+def test_bisector_intercept_point_is_equidistant():
+    game = BatchedGame(GameConfig(), 1)
+    game.reset(positions=np.array([[[0.0, 0, 0], [4.0, 0, 0], [2.0, 1.0, 0]]]))
+    direction = defender_bisector_intercept(game)
+    crossing = game.positions[0, DEFENDER] + direction[0]
+    assert crossing[1] == pytest.approx(0.0) and 0 < crossing[0] < 4  # on A's path to T
+    a_dist = norm(crossing - game.positions[0, ATTACKER])
+    d_dist = norm(crossing - game.positions[0, DEFENDER])
+    assert a_dist == pytest.approx(d_dist)
+
+
+def test_avoiding_targeter_goes_straight_when_safe_and_hides_otherwise():
+    game = BatchedGame(GameConfig(), 2)
+    game.reset(
+        positions=np.array(
+            [
+                [[5.0, 5.0, 0], [0.5, 0, 0], [2.0, 2.0, 0]],  # A far away: terminal in T's ball
+                [[-1.0, 0, 0], [1.0, 0, 0], [1.0, 1.0, 0]],  # A between T and the terminal
+            ]
+        )
+    )
+    direction = targeter_avoid_attacker(game)
+    np.testing.assert_allclose(direction[0], -game.positions[0, TARGETER])
+    assert direction[1, 1] > 0  # toward D's side, away from A
+
+
+@pytest.mark.parametrize("agent, names", sorted(PLAYERS.items()))
+def test_every_scripted_player_gives_valid_actions(agent, names):
+    for action_mode in ("relative", "absolute"):
+        game = BatchedGame(GameConfig(action_mode=action_mode), 64)
+        game.reset(np.random.default_rng(0))
+        for name in names:
+            actions = ScriptedPlayer(agent, name).act(game)
+            assert actions.shape == (64, 2) and np.all(np.isfinite(actions))
+
+
+def test_unknown_scripted_player():
+    with pytest.raises(ValueError, match="expected one of"):
+        ScriptedPlayer("attacker", "teleport")
+
+
+def test_default_scenarios_are_balanced():
+    config = GameConfig()
+    players = scripted_players("lead_intercept", PAPER_TEAM["targeter"], PAPER_TEAM["defender"])
+    result = play(config, players, evaluation_scenarios(config.scenario, 1000))
+    assert 0.2 <= result.attacker_wins.mean() <= 0.8
