@@ -32,8 +32,10 @@ them apart, so T and D get two more numbers.
 
 "Others" come opponent first: A sees (T, D), T sees (A, D), D sees (A, T).
 
-Global state (critic input, 22 numbers): positions of A, T, D (9, scaled), heading unit
-vectors of A, T, D (9), distances A-T, D-A, T-terminal (3, scaled), time left (1).
+Global state (critic input, 22 numbers): positions of A, T, D (9, scaled); headings of A,
+T, D as ``(cos yaw, sin yaw, pitch / (pi/2))`` (9: unlike a unit vector this keeps the
+yaw at vertical pitch, so the state fixes the game exactly); distances A-T, D-A,
+T-terminal (3, scaled); time left (1).
 """
 
 from __future__ import annotations
@@ -108,5 +110,18 @@ def global_state(config: GameConfig, positions: np.ndarray, headings: np.ndarray
         axis=1,
     )
     n = positions.shape[0]
-    parts = (scaled.reshape(n, 9), heading_vectors(headings).reshape(n, 9), distances, time_left[:, None])
+    yaw, pitch = headings[..., 0], headings[..., 1]
+    angles = np.stack((np.cos(yaw), np.sin(yaw), pitch / (np.pi / 2)), axis=-1)
+    parts = (scaled.reshape(n, 9), angles.reshape(n, 9), distances, time_left[:, None])
     return np.concatenate(parts, axis=1).astype(np.float32)
+
+
+def decode_global_state(config: GameConfig, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(positions (N, 3, 3), headings (N, 3, 2), time_left (N,))`` back from global states."""
+    states = np.asarray(states, dtype=np.float64)
+    n = states.shape[0]
+    positions = states[:, 0:9].reshape(n, 3, 3) * config.position_scale
+    angles = states[:, 9:18].reshape(n, 3, 3)
+    yaw = np.mod(np.arctan2(angles[..., 1], angles[..., 0]), 2 * np.pi)
+    headings = np.stack((yaw, angles[..., 2] * (np.pi / 2)), axis=-1)
+    return positions, headings, states[:, 21]

@@ -24,9 +24,11 @@ from typing import Callable
 import numpy as np
 
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER
+from envs.config import GameConfig
 from envs.core import BatchedGame
 from envs.geometry import apollonius_ball, lead_intercept, norm, unit
 from envs.kinematics import heading_vectors, headings_of, wrap_to_pi
+from envs.observations import decode_global_state
 
 # Proportional navigation gain (3 to 5 is the textbook range).
 NAVIGATION_GAIN = 3.0
@@ -112,6 +114,17 @@ def direction_to_action(game: BatchedGame, agent: int, direction: np.ndarray) ->
     yaw = wrap_to_pi(desired[:, 0] - current[:, 0]) / cfg.max_yaw_change
     pitch = (desired[:, 1] - current[:, 1]) / cfg.max_pitch_change
     return np.clip(np.stack((yaw, pitch), axis=1), -1.0, 1.0)
+
+
+def act_from_state(config: GameConfig, agent: str, name: str, states: np.ndarray) -> np.ndarray:
+    """Actions ``(N, 2)`` of a scripted player that sees only global states ``(N, 22)``.
+
+    For hosts that hold observations rather than a ``BatchedGame`` (an RLlib module).
+    """
+    positions, headings, _ = decode_global_state(config, states)
+    game = BatchedGame(config, len(positions))
+    game.positions, game.headings = positions, headings
+    return ScriptedPlayer(agent, name).act(game)
 
 
 @dataclass(frozen=True)

@@ -76,3 +76,17 @@ def test_default_scenarios_are_balanced():
     players = scripted_players("lead_intercept", PAPER_TEAM["targeter"], PAPER_TEAM["defender"])
     result = play(config, players, evaluation_scenarios(config.scenario, 1000))
     assert 0.2 <= result.attacker_wins.mean() <= 0.8
+
+
+@pytest.mark.parametrize("agent", ["attacker", "targeter", "defender"])
+def test_scripted_players_act_the_same_from_the_global_state(agent):
+    from envs.scripted import act_from_state
+
+    config = GameConfig()
+    game = BatchedGame(config, 32)
+    game.reset(np.random.default_rng(4))
+    for _ in range(3):
+        game.step(np.random.default_rng(5).uniform(-1, 1, (32, 3, 2)))
+    for name in PLAYERS[agent]:
+        expected = ScriptedPlayer(agent, name).act(game)
+        np.testing.assert_allclose(act_from_state(config, agent, name, game.global_state()), expected, atol=1e-4)

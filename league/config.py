@@ -1,0 +1,174 @@
+"""Run configuration: YAML files in ``configs/`` validated by these pydantic models.
+
+Every model forbids unknown keys, so a typo stops the run with the key's name.
+``load_config`` turns any problem (missing file, bad YAML, invalid value) into a
+``ConfigError`` whose message names the file and the key; ``league.run`` prints it
+and exits with code 2 before anything is written.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from envs.config import GameConfig
+from envs.scripted import PLAYERS
+
+CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
+Side = Literal["attacker", "team"]
+
+
+class ConfigError(ValueError):
+    """A run configuration that cannot be used; the message says where and why."""
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class PPOSettings(Strict):
+    """PPO hyperparameters, shared by the attacker and the team learner."""
+
+    lr: float = Field(3e-4, gt=0)
+    gamma: float = Field(0.99, gt=0, le=1)
+    lambda_: float = Field(0.95, ge=0, le=1)
+    clip_param: float = Field(0.2, gt=0)
+    entropy_coeff: float = Field(0.0, ge=0)
+    vf_loss_coeff: float = Field(0.5, ge=0)
+    grad_clip: float | None = Field(0.5, gt=0)
+    train_batch_size: int = Field(4000, ge=32, description="env steps per training iteration")
+    minibatch_size: int = Field(500, ge=8)
+    num_epochs: int = Field(5, ge=1)
+    hidden: list[int] = Field(default_factory=lambda: [64, 64], min_length=1)
+    """Hidden layer sizes of both the policy and the value network."""
+
+
+class Resources(Strict):
+    """Where sampling runs; ``num_cpus`` is used only when this run starts Ray itself."""
+
+    num_cpus: int = Field(2, ge=1)
+    num_env_runners: int = Field(0, ge=0)
+    num_envs_per_env_runner: int = Field(8, ge=1)
+    num_cpus_per_env_runner: float = Field(1, gt=0)
+
+
+class ScriptedTeam(Strict):
+    targeter: str = "avoid_attacker"
+    defender: str = "pure_pursuit"
+
+    @model_validator(mode="after")
+    def _known(self) -> "ScriptedTeam":
+        for agent, name in (("targeter", self.targeter), ("defender", self.defender)):
+            if name not in PLAYERS[agent]:
+                raise ValueError(f"unknown scripted {agent} {name!r}; expected one of {sorted(PLAYERS[agent])}")
+        return self
+
+
+class ProtocolPhase(Strict):
+    """One phase of the paper's protocol: one side learns against the other side's pool."""
+
+    learner: Side
+    episodes: int = Field(ge=1)
+    opponents: Literal["scripted", "latest"] = "scripted"
+    """``scripted``: the configured scripted players; ``latest``: the other side's newest snapshot."""
+
+
+class LeagueSettings(Strict):
+    mode: Literal["protocol", "selfplay"] = "selfplay"
+    phases: list[ProtocolPhase] = Field(default_factory=list)
+    """Protocol mode: the phases in order."""
+    selfplay_phases: int = Field(6, ge=1)
+    """Self-play mode: how many alternating phases (attacker first)."""
+    snapshot_win_rate: float = Field(0.6, gt=0, le=1)
+    """A self-play phase ends with a snapshot once the learner wins this often in it..."""
+    min_phase_episodes: int = Field(200, ge=1)
+    """...over at least this many episodes..."""
+    phase_env_steps: int = Field(100_000, ge=1)
+    """...or once it has sampled this many env steps."""
+    pfsp: Literal["squared", "variance", "uniform"] = "squared"
+    """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat."""
+    scripted_attackers: list[str] = Field(default_factory=lambda: ["lead_intercept"])
+    scripted_teams: list[ScriptedTeam] = Field(default_factory=lambda: [ScriptedTeam()])
+
+    @model_validator(mode="after")
+    def _check(self) -> "LeagueSettings":
+        for name in self.scripted_attackers:
+            if name not in PLAYERS["attacker"]:
+                raise ValueError(f"unknown scripted attacker {name!r}; expected one of {sorted(PLAYERS['attacker'])}")
+        if self.mode == "protocol" and not self.phases:
+            raise ValueError("protocol mode needs at least one entry in `phases`")
+        if self.mode == "protocol" and self.phases[0].opponents == "latest":
+            raise ValueError("the first protocol phase has no snapshot to play: use opponents: scripted")
+        if not self.scripted_attackers or not self.scripted_teams:
+            raise ValueError("the league needs at least one scripted attacker and one scripted team")
+        return self
+
+
+class EvaluationSettings(Strict):
+    episodes: int = Field(1000, ge=1)
+    """Fixed seeded games per evaluated pair."""
+
+
+class RunConfig(Strict):
+    name: str = Field(min_length=1)
+    seed: int = 0
+    game: GameConfig = Field(default_factory=GameConfig)
+    ppo: PPOSettings = Field(default_factory=PPOSettings)
+    resources: Resources = Field(default_factory=Resources)
+    league: LeagueSettings = Field(default_factory=LeagueSettings)
+    evaluation: EvaluationSettings = Field(default_factory=EvaluationSettings)
+    checkpoint_every: int = Field(1, ge=1)
+    """Iterations between checkpoints; a resume restarts from the last one."""
+
+    @model_validator(mode="after")
+    def _check(self) -> "RunConfig":
+        if self.ppo.minibatch_size > self.ppo.train_batch_size:
+            raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
+        return self
+
+
+def resolve_path(name: str) -> Path:
+    """A path as given, or a bare name looked up in ``configs/`` (``.yaml`` optional)."""
+    path = Path(name)
+    if path.exists():
+        return path
+    for candidate in (CONFIG_DIR / name, CONFIG_DIR / f"{name}.yaml"):
+        if candidate.exists():
+            return candidate
+    raise ConfigError(f"config {name!r} not found (looked in the working directory and {CONFIG_DIR})")
+
+
+def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
+    keys = dotted.split(".")
+    node = data
+    for key in keys[:-1]:
+        node = node.setdefault(key, {})
+        if not isinstance(node, dict):
+            raise ConfigError(f"--set {dotted}: {key!r} is not a section")
+    node[keys[-1]] = value
+
+
+def load_config(name: str, overrides: list[str] | None = None) -> RunConfig:
+    """Read, override (``key.sub=value``, value parsed as YAML) and validate a config."""
+    path = resolve_path(name)
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{path}: not valid YAML: {err}") from err
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: the top level must be a mapping of keys")
+    for item in overrides or []:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"--set {item!r}: expected key=value")
+        _set_dotted(data, key.strip(), yaml.safe_load(raw))
+    try:
+        return RunConfig.model_validate(data)
+    except ValidationError as err:
+        problems = "; ".join(
+            f"{'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}" for e in err.errors()
+        )
+        raise ConfigError(f"{path}: {problems}") from err

@@ -1,0 +1,269 @@
+"""The training loop: phases, matches, snapshots, checkpoints, all recorded in the store.
+
+One iteration: pick the learner's opponents by PFSP (``MatchPlan``), ``algo.train()``,
+record who played whom with which outcome, snapshot the learner when its phase ends,
+checkpoint, and commit the iteration to the league database in one transaction.
+
+Phases:
+
+* ``protocol`` (the paper): the configured phases in order, each a number of episodes
+  of one side learning against the other side's scripted players or newest snapshot.
+* ``selfplay``: attacker and team learn in turn; a phase ends, with a snapshot, when the
+  learner wins ``snapshot_win_rate`` of at least ``min_phase_episodes`` episodes of the
+  phase, or after ``phase_env_steps`` env steps.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from envs.agents import Outcome
+from league import rllib_bridge as bridge
+from league.config import RunConfig
+from league.payoff import aggregate, elo_ratings, win_rate
+from league.pfsp import pfsp_probabilities
+from league.players import LEARNER_MODULES, Player, other_side
+from league.progress import ProgressReporter
+from league.store import LeagueStore
+
+ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
+CHECKPOINTS_KEPT = 2
+
+
+@dataclass
+class PhaseState:
+    index: int
+    side: str
+    start_iteration: int
+    episodes: int = 0
+    learner_wins: int = 0
+    env_steps: int = 0
+
+
+@dataclass
+class RunState:
+    """Everything a resume needs besides the algorithm checkpoint and the database."""
+
+    phase: PhaseState
+    iteration: int = 0
+    env_steps: int = 0
+    episodes: int = 0
+    learner_env_steps: dict[str, int] = field(default_factory=lambda: {"attacker": 0, "team": 0})
+    training_done: bool = False
+    rng: dict[str, Any] = field(default_factory=dict)
+
+    @staticmethod
+    def from_json(data: dict[str, Any]) -> "RunState":
+        return RunState(**{**data, "phase": PhaseState(**data["phase"])})
+
+
+def phase_count(run: RunConfig) -> int:
+    return len(run.league.phases) if run.league.mode == "protocol" else run.league.selfplay_phases
+
+
+def phase_side(run: RunConfig, index: int) -> str:
+    if run.league.mode == "protocol":
+        return run.league.phases[index].learner
+    return "attacker" if index % 2 == 0 else "team"
+
+
+class Coordinator:
+    def __init__(self, run: RunConfig, run_dir: Path, store: LeagueStore, algo: Any, state: RunState):
+        self.run = run
+        self.run_dir = run_dir
+        self.store = store
+        self.algo = algo
+        self.state = state
+        self.rng = np.random.default_rng()
+        if state.rng:
+            self.rng.bit_generator.state = state.rng
+
+    # ------------------------------------------------------------ league views
+    def learner(self, side: str) -> Player:
+        return next(p for p in self.store.players(side=side, kind="learner"))
+
+    def module_players(self) -> tuple[dict[str, Player], dict[tuple[str, str], Player]]:
+        """Players by attacker module, and team players by (targeter, defender) module."""
+        attackers, teams = {}, {}
+        for player in self.store.players():
+            modules = player.modules()
+            if player.side == "attacker":
+                attackers[modules["attacker"]] = player
+            else:
+                teams[(modules["targeter"], modules["defender"])] = player
+        return attackers, teams
+
+    def candidates(self, side: str) -> list[Player]:
+        """The opponents of the ``side`` learner in the current phase."""
+        pool_side = other_side(side)
+        scripted = self.store.players(side=pool_side, kind="scripted")
+        snapshots = self.store.players(side=pool_side, kind="snapshot")
+        if self.run.league.mode == "protocol":
+            spec = self.run.league.phases[self.state.phase.index]
+            if spec.opponents == "latest":
+                if not snapshots:
+                    raise RuntimeError(f"phase {spec} wants the latest {pool_side} snapshot, but there is none")
+                return [snapshots[-1]]
+            return scripted
+        return scripted + snapshots
+
+    def learner_win_rates(self, learner: Player, opponents: list[Player]) -> list[float]:
+        table = aggregate(self.store.match_rows("training"), ATTACKER_WINS)
+        rates = []
+        for opponent in opponents:
+            if learner.side == "attacker":
+                wins, games = table.get((learner.id, opponent.id), (0, 0))
+            else:
+                attacker_wins, games = table.get((opponent.id, learner.id), (0, 0))
+                wins = games - attacker_wins
+            rates.append(win_rate(wins, games))
+        return rates
+
+    def match_plan(self) -> tuple[bridge.MatchPlan, list[Player], np.ndarray]:
+        side = self.state.phase.side
+        learner = self.learner(side)
+        opponents = self.candidates(side)
+        probabilities = pfsp_probabilities(self.learner_win_rates(learner, opponents), self.run.league.pfsp)
+        plan = bridge.MatchPlan(
+            learner_modules=learner.modules(),
+            opponent_modules=[o.modules() for o in opponents],
+            probabilities=probabilities.tolist(),
+            seed=int(self.rng.integers(2**31)),
+        )
+        return plan, opponents, probabilities
+
+    # ------------------------------------------------------------ iteration
+    def train_iteration(self, progress: ProgressReporter) -> None:
+        plan, opponents, probabilities = self.match_plan()
+        bridge.set_match_plan(self.algo, plan)
+        started = time.perf_counter()
+        result = self.algo.train()
+        seconds = time.perf_counter() - started
+
+        st, phase = self.state, self.state.phase
+        st.iteration += 1
+        rows = self.match_rows(result)
+        learner = self.learner(phase.side)
+        for attacker, team, outcome, count in rows:
+            st.episodes += count
+            if learner.id in (attacker, team):
+                phase.episodes += count
+                attacker_won = outcome in ATTACKER_WINS
+                phase.learner_wins += count if attacker_won == (phase.side == "attacker") else 0
+        total_steps = bridge.sampled_env_steps(result)
+        steps = total_steps - st.env_steps
+        st.env_steps = total_steps
+        phase.env_steps += steps
+        st.learner_env_steps[phase.side] += steps
+
+        snapshot = None
+        if self.phase_finished():
+            snapshot = self.snapshot(phase.side)
+            self.next_phase()
+        checkpoint = self.checkpoint() if snapshot or st.training_done or st.iteration % self.run.checkpoint_every == 0 else None
+
+        with self.store.transaction():
+            self.store.record_matches(st.iteration, "training", rows)
+            if snapshot is not None:
+                self.store.add_player(st.iteration, **snapshot)
+            for side, steps_done in st.learner_env_steps.items():
+                self.store.set_player_steps(self.learner(side).id, steps_done)
+            ratings = elo_ratings(
+                [(a, t, w, n) for (a, t), (w, n) in aggregate(self.store.match_rows(), ATTACKER_WINS).items()],
+                [p.id for p in self.store.players()],
+            )
+            self.store.record_ratings(st.iteration, ratings)
+            self.store.record_iteration(
+                st.iteration,
+                phase=phase.index,
+                learner_side=phase.side,
+                env_steps=st.env_steps,
+                episodes=st.episodes,
+                steps_per_second=steps / seconds,
+                wall_seconds=seconds,
+            )
+            st.rng = self.rng.bit_generator.state
+            if checkpoint is not None:
+                self.store.record_checkpoint(st.iteration, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(st)))
+        self.prune_checkpoints()
+        progress.iteration(self, result, opponents, probabilities, steps / seconds, snapshot)
+
+    def match_rows(self, result: dict[str, Any]) -> list[tuple[int, int, str, int]]:
+        attackers, teams = self.module_players()
+        rows = []
+        for (attacker_module, targeter_module, defender_module), outcome, count in bridge.match_counts(result):
+            attacker = attackers[attacker_module]
+            team = teams[(targeter_module, defender_module)]
+            rows.append((attacker.id, team.id, outcome, count))
+        return rows
+
+    def phase_finished(self) -> bool:
+        phase, league = self.state.phase, self.run.league
+        if league.mode == "protocol":
+            return phase.episodes >= league.phases[phase.index].episodes
+        if phase.env_steps >= league.phase_env_steps:
+            return True
+        return phase.episodes >= league.min_phase_episodes and phase.learner_wins / phase.episodes >= league.snapshot_win_rate
+
+    def next_phase(self) -> None:
+        index = self.state.phase.index + 1
+        if index >= phase_count(self.run):
+            self.state.training_done = True
+            return
+        side = phase_side(self.run, index)
+        self.state.phase = PhaseState(index=index, side=side, start_iteration=self.state.iteration)
+        self.set_trainable(side)
+
+    def set_trainable(self, side: str) -> None:
+        bridge.set_trainable(self.algo, [LEARNER_MODULES[side]])
+
+    # ------------------------------------------------------------ snapshots, checkpoints
+    def snapshot(self, side: str) -> dict[str, Any]:
+        """Freeze the ``side`` learner as a new league member; returns its player columns."""
+        learner = self.learner(side)
+        version = 1 + max((p.version for p in self.store.players(side=side, kind="snapshot")), default=-1)
+        player = Player(id=-1, side=side, kind="snapshot", version=version)
+        bridge.add_snapshot(self.algo, self.run, player, learner.name)
+        path = self.run_dir / "players" / player.name
+        if path.exists():  # left over by a run killed before it committed this snapshot
+            shutil.rmtree(path)
+        bridge.save_module(self.algo, player.name, path)
+        return {
+            "side": side,
+            "kind": "snapshot",
+            "version": version,
+            "reward_method": learner.reward_method,
+            "parent": learner.id,
+            "env_steps": self.state.learner_env_steps[side],
+            "checkpoint": str(path.relative_to(self.run_dir)),
+        }
+
+    def checkpoint(self) -> Path:
+        """Write the algorithm to a temporary directory, then rename it into place."""
+        final = self.run_dir / "checkpoints" / f"iter_{self.state.iteration:06d}"
+        partial = final.with_name(final.name + ".partial")
+        for stale in (partial, final):
+            if stale.exists():
+                shutil.rmtree(stale)
+        self.algo.save_to_path(str(partial))
+        partial.rename(final)
+        return final
+
+    def prune_checkpoints(self) -> None:
+        kept = {self.run_dir / path for _, path in self.store.checkpoints()[-CHECKPOINTS_KEPT:]}
+        for directory in (self.run_dir / "checkpoints").glob("iter_*"):
+            if directory not in kept:
+                shutil.rmtree(directory, ignore_errors=True)
+
+    # ------------------------------------------------------------ whole run
+    def train(self, progress: ProgressReporter) -> None:
+        self.set_trainable(self.state.phase.side)
+        while not self.state.training_done:
+            self.train_iteration(progress)

@@ -1,0 +1,118 @@
+"""Play frozen players against each other on the batched core (no RLlib sampling stack).
+
+Learned players are RLModules loaded from their saved directories and run with plain
+torch forward passes (the Gaussian's mean, i.e. the deterministic action); scripted
+players are ``envs.scripted`` players. Every pair plays the same fixed seeded games
+(``envs.scenarios.evaluation_scenarios``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from envs.agents import AGENTS, Outcome
+from envs.config import GameConfig
+from envs.core import BatchedGame
+from envs.match import MatchResult, Player as AgentPlayer, play
+from envs.scenarios import evaluation_scenarios
+from envs.scripted import ScriptedPlayer
+from league.players import Player
+
+Z_95 = 1.959963984540054
+
+
+def wilson_interval(wins: int, games: int, z: float = Z_95) -> tuple[float, float]:
+    """95% Wilson score interval of a win rate."""
+    if games == 0:
+        return (0.0, 1.0)
+    p = wins / games
+    denom = 1 + z * z / games
+    centre = (p + z * z / (2 * games)) / denom
+    half = z * math.sqrt(p * (1 - p) / games + z * z / (4 * games * games)) / denom
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+class LearnedAgent:
+    """One agent driven by a saved RLModule's deterministic action."""
+
+    def __init__(self, module: torch.nn.Module, agent: str):
+        self.module = module
+        self.index = AGENTS.index(agent)
+
+    @torch.no_grad()
+    def act(self, game: BatchedGame) -> np.ndarray:
+        obs = np.concatenate((game.observations()[self.index], game.global_state()), axis=1)
+        return self.module.deterministic_action(torch.from_numpy(obs)).numpy().astype(np.float64)
+
+
+def load_module(path: str | Path) -> torch.nn.Module:
+    from ray.rllib.core.rl_module.rl_module import RLModule
+
+    if not Path(path, "module_state.pkl").exists():
+        raise FileNotFoundError(f"no saved module at {path} (module_state.pkl missing)")
+    module = RLModule.from_checkpoint(str(path))
+    module.eval()
+    return module
+
+
+def agents_of(player: Player, run_dir: Path) -> dict[str, AgentPlayer]:
+    """The per-agent players of a league member (``attacker`` or ``targeter``/``defender``)."""
+    if player.kind == "scripted":
+        if player.side == "attacker":
+            return {"attacker": ScriptedPlayer("attacker", player.scripted_attacker)}
+        return {
+            "targeter": ScriptedPlayer("targeter", player.scripted_targeter),
+            "defender": ScriptedPlayer("defender", player.scripted_defender),
+        }
+    if not player.checkpoint:
+        raise ValueError(f"player {player.name} has no saved module to evaluate")
+    module = load_module(run_dir / player.checkpoint)
+    agents = ("attacker",) if player.side == "attacker" else ("targeter", "defender")
+    return {agent: LearnedAgent(module, agent) for agent in agents}
+
+
+@dataclass
+class PairResult:
+    attacker: Player
+    team: Player
+    result: MatchResult
+
+    @property
+    def games(self) -> int:
+        return len(self.result.outcome)
+
+    @property
+    def attacker_wins(self) -> int:
+        return int(self.result.attacker_wins.sum())
+
+    def outcome_rows(self) -> list[tuple[int, int, str, int]]:
+        return [(self.attacker.id, self.team.id, label, n) for label, n in self.result.outcome_counts().items() if n]
+
+
+def evaluate_pair(game: GameConfig, attacker: Player, team: Player, episodes: int, run_dir: Path) -> PairResult:
+    players = {**agents_of(attacker, run_dir), **agents_of(team, run_dir)}
+    result = play(game, players, evaluation_scenarios(game.scenario, episodes))
+    return PairResult(attacker, team, result)
+
+
+def format_table(results: list[PairResult]) -> str:
+    """Markdown table: attacker win rate with its 95% Wilson interval and the outcomes."""
+    lines = [
+        "| attacker | team | games | attacker wins | 95% interval | "
+        + " | ".join(o.label for o in Outcome if o != Outcome.RUNNING)
+        + " |",
+        "| --- | --- | --- | --- | --- | " + " | ".join("---" for o in Outcome if o != Outcome.RUNNING) + " |",
+    ]
+    for r in results:
+        low, high = wilson_interval(r.attacker_wins, r.games)
+        counts = r.result.outcome_counts()
+        lines.append(
+            f"| {r.attacker.name} | {r.team.name} | {r.games} | {r.attacker_wins / r.games:.3f} | "
+            f"[{low:.3f}, {high:.3f}] | " + " | ".join(str(counts[o.label]) for o in Outcome if o != Outcome.RUNNING) + " |"
+        )
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,95 @@
+"""The RLModules of the league: learned actor-critics and scripted players.
+
+Every agent's observation arrives with the env's 22-number global state appended
+(``envs.rllib_env``, ``with_global_state``): ``obs = [own observation | global state]``.
+
+* ``ActorCriticModule``: a Gaussian policy over the own observation only, and a value
+  network over either the global state (``critic: global``, the team's MAPPO critic)
+  or the own observation (``critic: local``, plain PPO, the attacker's).
+* ``ScriptedModule``: a scripted player of ``envs.scripted``, reading the global state;
+  it returns actions directly and is never trained.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from envs.config import GameConfig
+from envs.scripted import act_from_state
+from ray.rllib.core.columns import Columns
+from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
+from ray.rllib.core.rl_module.torch import TorchRLModule
+
+# Initial log standard deviation of the Gaussian policy (std ~0.6 of the [-1, 1] range).
+INITIAL_LOG_STD = -0.5
+
+
+def mlp(inputs: int, hidden: list[int], outputs: int, last_gain: float) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for size in hidden:
+        linear = nn.Linear(inputs, size)
+        nn.init.orthogonal_(linear.weight, gain=np.sqrt(2))
+        nn.init.zeros_(linear.bias)
+        layers += [linear, nn.Tanh()]
+        inputs = size
+    head = nn.Linear(inputs, outputs)
+    nn.init.orthogonal_(head.weight, gain=last_gain)
+    nn.init.zeros_(head.bias)
+    return nn.Sequential(*layers, head)
+
+
+class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
+    """PPO actor-critic; ``model_config``: ``actor_inputs``, ``critic`` ("global"|"local"), ``hidden``."""
+
+    def setup(self) -> None:
+        cfg = self.model_config
+        self.actor_inputs = int(cfg["actor_inputs"])
+        self.critic_input = cfg["critic"]
+        total = self.observation_space.shape[0]
+        critic_inputs = total - self.actor_inputs if self.critic_input == "global" else self.actor_inputs
+        actions = self.action_space.shape[0]
+        hidden = list(cfg["hidden"])
+        self.pi = mlp(self.actor_inputs, hidden, actions, last_gain=0.01)
+        self.log_std = nn.Parameter(torch.full((actions,), INITIAL_LOG_STD))
+        self.vf = mlp(critic_inputs, hidden, 1, last_gain=1.0)
+
+    def actor_features(self, obs: torch.Tensor) -> torch.Tensor:
+        return obs[..., : self.actor_inputs]
+
+    def critic_features(self, obs: torch.Tensor) -> torch.Tensor:
+        return obs[..., self.actor_inputs :] if self.critic_input == "global" else obs[..., : self.actor_inputs]
+
+    def deterministic_action(self, obs: torch.Tensor) -> torch.Tensor:
+        """The Gaussian's mean: what the policy does when not exploring."""
+        return self.pi(self.actor_features(obs))
+
+    def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
+        mean = self.deterministic_action(batch[Columns.OBS])
+        log_std = self.log_std.expand_as(mean)
+        return {Columns.ACTION_DIST_INPUTS: torch.cat((mean, log_std), dim=-1)}
+
+    def compute_values(self, batch: dict[str, Any], embeddings: Any = None) -> torch.Tensor:
+        return self.vf(self.critic_features(batch[Columns.OBS])).squeeze(-1)
+
+
+class ScriptedModule(TorchRLModule):
+    """A scripted player; ``model_config``: ``agent``, ``name``, ``game`` (GameConfig fields), ``actor_inputs``."""
+
+    def setup(self) -> None:
+        cfg = self.model_config
+        self.game_config = GameConfig(**cfg["game"])
+        self.agent, self.name = cfg["agent"], cfg["name"]
+        self.actor_inputs = int(cfg["actor_inputs"])
+
+    def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
+        obs = batch[Columns.OBS]
+        states = obs[..., self.actor_inputs :].detach().cpu().numpy()
+        actions = act_from_state(self.game_config, self.agent, self.name, states)
+        return {Columns.ACTIONS: torch.as_tensor(actions, dtype=torch.float32)}
+
+    def _forward_train(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
+        raise RuntimeError(f"scripted module {self.agent}/{self.name} is never trained: keep it out of policies_to_train")

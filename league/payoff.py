@@ -1,0 +1,58 @@
+"""Win rates and ratings from match results (rows of ``league.store``).
+
+A pair never played counts as an even match (win rate 0.5), as in AlphaStar.
+Ratings are Elo-scaled Bradley-Terry strengths fitted to all results so far:
+``P(i beats j) = 1 / (1 + 10 ** ((r_j - r_i) / 400))``, mean rating 1000.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+
+UNPLAYED_WIN_RATE = 0.5
+ELO_SCALE = 400.0 / np.log(10.0)
+MEAN_RATING = 1000.0
+# A weak prior (one draw against an average player) keeps unbeaten players finite.
+PRIOR_GAMES = 1.0
+
+
+def win_rate(wins: int, games: int) -> float:
+    return wins / games if games else UNPLAYED_WIN_RATE
+
+
+def elo_ratings(results: list[tuple[int, int, int, int]], players: list[int], iterations: int = 200) -> dict[int, float]:
+    """Ratings from ``(attacker_id, team_id, attacker_wins, games)`` rows."""
+    if not players:
+        return {}
+    index = {p: i for i, p in enumerate(players)}
+    wins = np.zeros((len(players), len(players)))
+    games = np.zeros_like(wins)
+    for attacker, team, attacker_wins, n in results:
+        if attacker not in index or team not in index:
+            continue
+        a, t = index[attacker], index[team]
+        wins[a, t] += attacker_wins
+        wins[t, a] += n - attacker_wins
+        games[a, t] += n
+        games[t, a] += n
+    strength = np.zeros(len(players))
+    total_wins = wins.sum(axis=1) + PRIOR_GAMES / 2
+    for _ in range(iterations):  # minorise-maximise updates of Bradley-Terry (Hunter 2004)
+        expo = np.exp(strength)
+        denom = (games / (expo[:, None] + expo[None, :] + 1e-300)).sum(axis=1) + PRIOR_GAMES / (expo + 1.0)
+        strength = np.log(total_wins / denom)
+        strength -= strength.mean()
+    return {p: float(MEAN_RATING + ELO_SCALE * strength[index[p]]) for p in players}
+
+
+def aggregate(rows: list[tuple[int, int, str, int]], attacker_wins: set[str]) -> dict[tuple[int, int], tuple[int, int]]:
+    """``{(attacker, team): (attacker wins, games)}`` from ``(attacker, team, outcome, count)`` rows."""
+    table: dict[tuple[int, int], list[int]] = defaultdict(lambda: [0, 0])
+    for attacker, team, outcome, count in rows:
+        entry = table[(attacker, team)]
+        entry[1] += count
+        if outcome in attacker_wins:
+            entry[0] += count
+    return {key: (w, n) for key, (w, n) in table.items()}

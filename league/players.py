@@ -1,0 +1,75 @@
+"""League members: who they are, which side they play, which RLModules play for them.
+
+A player is a row of the ``players`` table (``league.store``); its module ids are
+derived from its columns, never parsed back from names.
+
+| kind       | what it is                                             | trained |
+| ---------- | ------------------------------------------------------ | ------- |
+| learner    | the side's learning module (``attacker`` or ``team``)  | yes     |
+| snapshot   | a frozen copy of a learner at some iteration           | no      |
+| scripted   | a scripted player of ``envs.scripted``                 | no      |
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+Side = Literal["attacker", "team"]
+Kind = Literal["learner", "snapshot", "scripted"]
+LEARNER_MODULES: dict[str, str] = {"attacker": "attacker", "team": "team"}
+
+
+def other_side(side: str) -> str:
+    return "team" if side == "attacker" else "attacker"
+
+
+@dataclass(frozen=True)
+class Player:
+    id: int
+    side: Side
+    kind: Kind
+    version: int
+    reward_method: int | None = None
+    parent: int | None = None
+    scripted_attacker: str | None = None
+    scripted_targeter: str | None = None
+    scripted_defender: str | None = None
+    env_steps: int = 0
+    checkpoint: str | None = None
+    created_iteration: int = 0
+
+    @property
+    def name(self) -> str:
+        """Display name, also the snapshot's module id."""
+        if self.kind == "learner":
+            return LEARNER_MODULES[self.side]
+        if self.kind == "snapshot":
+            return f"{self.side}-v{self.version}"
+        if self.side == "attacker":
+            return f"scripted-{self.scripted_attacker}"
+        return f"scripted-{self.scripted_targeter}+{self.scripted_defender}"
+
+    def modules(self) -> dict[str, str]:
+        """Module id per agent for the agents of this player's side."""
+        if self.kind == "scripted":
+            if self.side == "attacker":
+                return {"attacker": f"scripted-attacker-{self.scripted_attacker}"}
+            return {
+                "targeter": f"scripted-targeter-{self.scripted_targeter}",
+                "defender": f"scripted-defender-{self.scripted_defender}",
+            }
+        agents = ("attacker",) if self.side == "attacker" else ("targeter", "defender")
+        return {agent: self.name for agent in agents}
+
+
+@dataclass(frozen=True)
+class Match:
+    """Who plays which agent in one episode: the learner and one opponent."""
+
+    attacker: Player
+    team: Player
+
+    def module_for(self, agent: str) -> str:
+        side = self.attacker if agent == "attacker" else self.team
+        return side.modules()[agent]

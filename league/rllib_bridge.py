@@ -1,0 +1,221 @@
+"""The only place that touches RLlib: algorithm config, modules, mapping, results, checkpoints.
+
+* ``MatchPlan`` is the agent-to-module mapping. It decides each episode's opponent
+  once, from the episode id and a seed (no state kept between calls), by the PFSP
+  probabilities the coordinator computed; it is a picklable object sent to every
+  EnvRunner.
+* ``MatchRecorder`` logs, per finished episode, which modules played and the outcome;
+  the counts reach the driver through RLlib's metrics (summed over the iteration).
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from envs.agents import AGENTS
+from envs.rllib_env import TargetDefenseMultiAgentEnv
+from league.config import RunConfig
+from league.modules import ActorCriticModule, ScriptedModule
+from league.players import LEARNER_MODULES, Player
+from ray.rllib.algorithms.algorithm import Algorithm
+from ray.rllib.algorithms.ppo import PPOConfig
+from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
+from ray.rllib.callbacks.callbacks import RLlibCallback
+from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
+from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED_LIFETIME
+
+MATCHES_KEY = "league_matches"
+SEPARATOR = "|"
+
+
+def env_config(run: RunConfig) -> dict[str, Any]:
+    return {**run.game.model_dump(), "with_global_state": True}
+
+
+def probe_env(run: RunConfig) -> TargetDefenseMultiAgentEnv:
+    return TargetDefenseMultiAgentEnv(env_config(run))
+
+
+def actor_inputs(run: RunConfig, agent: str) -> int:
+    """Length of the agent's own observation (the global state follows it)."""
+    from envs.pettingzoo_env import TargetDefenseEnv
+
+    return TargetDefenseEnv(run.game).observation_space(agent).shape[0]
+
+
+def learner_spec(run: RunConfig, side: str) -> RLModuleSpec:
+    env = probe_env(run)
+    agent = "attacker" if side == "attacker" else "targeter"
+    return RLModuleSpec(
+        module_class=ActorCriticModule,
+        observation_space=env.observation_spaces[agent],
+        action_space=env.action_spaces[agent],
+        model_config={
+            "actor_inputs": actor_inputs(run, agent),
+            "critic": "local" if side == "attacker" else "global",
+            "hidden": run.ppo.hidden,
+        },
+    )
+
+
+def scripted_spec(run: RunConfig, agent: str, name: str) -> RLModuleSpec:
+    env = probe_env(run)
+    return RLModuleSpec(
+        module_class=ScriptedModule,
+        observation_space=env.observation_spaces[agent],
+        action_space=env.action_spaces[agent],
+        model_config={"agent": agent, "name": name, "game": run.game.model_dump(), "actor_inputs": actor_inputs(run, agent)},
+    )
+
+
+def player_specs(run: RunConfig, player: Player) -> dict[str, RLModuleSpec]:
+    """Module id -> spec of every module the player needs."""
+    if player.kind != "scripted":
+        return {player.name: learner_spec(run, player.side)}
+    return {module: scripted_spec(run, agent, module.split("-", 2)[2]) for agent, module in player.modules().items()}
+
+
+@dataclass
+class MatchPlan:
+    """Agent -> module mapping for one phase: the learner against PFSP-drawn opponents."""
+
+    learner_modules: dict[str, str]
+    opponent_modules: list[dict[str, str]]
+    probabilities: list[float]
+    seed: int
+    cumulative: list[float] = field(init=False)
+
+    def __post_init__(self) -> None:
+        total, self.cumulative = 0.0, []
+        for p in self.probabilities:
+            total += p
+            self.cumulative.append(total)
+
+    def opponent_index(self, episode_id: str) -> int:
+        draw = random.Random(f"{self.seed}:{episode_id}").random() * self.cumulative[-1]
+        return next((i for i, c in enumerate(self.cumulative) if draw < c), len(self.cumulative) - 1)
+
+    def __call__(self, agent_id: str, episode: Any = None, **kwargs: Any) -> str:
+        if agent_id in self.learner_modules:
+            return self.learner_modules[agent_id]
+        return self.opponent_modules[self.opponent_index(episode.id_)][agent_id]
+
+
+class MatchRecorder(RLlibCallback):
+    """Counts finished episodes by (attacker module, targeter module, defender module, outcome)."""
+
+    def on_episode_end(self, *, episode, metrics_logger=None, **kwargs) -> None:
+        infos = episode.get_infos(-1)
+        outcome = infos["attacker"]["outcome"]
+        modules = SEPARATOR.join(episode.module_for(agent) for agent in AGENTS)
+        metrics_logger.log_value((MATCHES_KEY, modules, outcome), 1, reduce="sum")
+
+
+def match_counts(result: dict[str, Any]) -> list[tuple[tuple[str, str, str], str, int]]:
+    """``((attacker, targeter, defender modules), outcome, count)`` of one ``train()`` result."""
+    counts = result.get(ENV_RUNNER_RESULTS, {}).get(MATCHES_KEY, {})
+    rows = []
+    for modules, outcomes in counts.items():
+        for outcome, count in outcomes.items():
+            if count == count and count > 0:  # keys of modules that did not play this time are NaN
+                rows.append((tuple(modules.split(SEPARATOR)), outcome, int(count)))
+    return rows
+
+
+def sampled_env_steps(result: dict[str, Any]) -> int:
+    return int(result.get(ENV_RUNNER_RESULTS, {}).get(NUM_ENV_STEPS_SAMPLED_LIFETIME, 0))
+
+
+class LeaguePPOLearner(PPOTorchLearner):
+    """PPO learner that gives no optimizer to parameter-free (scripted) modules."""
+
+    def configure_optimizers_for_module(self, module_id: str, config: Any = None) -> None:
+        if any(True for _ in self.module[module_id].parameters()):
+            super().configure_optimizers_for_module(module_id=module_id, config=config)
+
+
+def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOConfig:
+    specs: dict[str, RLModuleSpec] = {side: learner_spec(run, side) for side in LEARNER_MODULES}
+    for player in players:
+        specs.update(player_specs(run, player))
+    res, ppo = run.resources, run.ppo
+    return (
+        PPOConfig()
+        .environment(env=TargetDefenseMultiAgentEnv, env_config=env_config(run), normalize_actions=False, clip_actions=False)
+        .env_runners(
+            num_env_runners=res.num_env_runners,
+            num_envs_per_env_runner=res.num_envs_per_env_runner,
+            num_cpus_per_env_runner=res.num_cpus_per_env_runner,
+            rollout_fragment_length="auto",
+        )
+        .learners(num_learners=0)
+        .multi_agent(
+            policies=set(specs),
+            policy_mapping_fn=plan,
+            policies_to_train=list(LEARNER_MODULES.values()),
+        )
+        .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
+        .training(
+            lr=ppo.lr,
+            gamma=ppo.gamma,
+            lambda_=ppo.lambda_,
+            clip_param=ppo.clip_param,
+            entropy_coeff=ppo.entropy_coeff,
+            vf_loss_coeff=ppo.vf_loss_coeff,
+            grad_clip=ppo.grad_clip,
+            train_batch_size_per_learner=ppo.train_batch_size,
+            minibatch_size=ppo.minibatch_size,
+            num_epochs=ppo.num_epochs,
+            vf_clip_param=float("inf"),
+            learner_class=LeaguePPOLearner,
+        )
+        .fault_tolerance(restart_failed_env_runners=True)
+        .callbacks(MatchRecorder)
+        .debugging(seed=run.seed, log_level="ERROR")
+        .reporting(metrics_num_episodes_for_smoothing=100)
+    )
+
+
+def set_match_plan(algo: Algorithm, plan: MatchPlan) -> None:
+    """Send a new mapping to every EnvRunner (ongoing episodes keep their old mapping)."""
+    algo.env_runner_group.foreach_env_runner(
+        lambda runner: runner.config.multi_agent(policy_mapping_fn=plan), local_env_runner=True
+    )
+
+
+def set_trainable(algo: Algorithm, module_ids: list[str]) -> None:
+    """Train only ``module_ids`` from now on (the learning side of the phase)."""
+    algo.learner_group.foreach_learner(lambda learner: learner.config.multi_agent(policies_to_train=module_ids))
+    algo.env_runner_group.foreach_env_runner(
+        lambda runner: runner.config.multi_agent(policies_to_train=module_ids), local_env_runner=True
+    )
+
+
+def add_snapshot(algo: Algorithm, run: RunConfig, snapshot: Player, source_module: str) -> None:
+    """Add a frozen copy of ``source_module`` as ``snapshot.name`` to learners and EnvRunners."""
+    algo.add_module(module_id=snapshot.name, module_spec=learner_spec(run, snapshot.side))
+    weights = algo.learner_group.get_weights(module_ids=[source_module])[source_module]
+    algo.learner_group.set_weights({snapshot.name: weights})
+    algo.env_runner_group.sync_weights(from_worker_or_learner_group=algo.learner_group, inference_only=True)
+
+
+def add_scripted(algo: Algorithm, run: RunConfig, player: Player) -> None:
+    for module, spec in player_specs(run, player).items():
+        if module not in algo.config.policies:
+            algo.add_module(module_id=module, module_spec=spec)
+
+
+def save_module(algo: Algorithm, module_id: str, path: Path) -> None:
+    """Write one module (class, spaces, config and weights) for use without the algorithm."""
+    module = algo.get_module(module_id)
+    module.save_to_path(str(path))
+
+
+def learner_weights(algo: Algorithm, module_id: str) -> dict[str, torch.Tensor]:
+    return algo.learner_group.get_weights(module_ids=[module_id])[module_id]

@@ -1,0 +1,79 @@
+"""Print the league table of a run: ``python -m league.status --run-dir DIR``.
+
+Reads only the league database, so it works while ``league.run`` trains.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from envs.agents import Outcome
+from league.payoff import aggregate
+from league.store import DB_NAME, LeagueStore
+
+ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
+
+
+def league_table(store: LeagueStore, source: str | None = None) -> Table:
+    """Players with rating, games and win rate over all their matches of ``source``."""
+    ratings = store.latest_ratings()
+    payoff = aggregate(store.match_rows(source), ATTACKER_WINS)
+    table = Table(title="league")
+    for column in ("player", "side", "kind", "reward", "parent", "env steps", "rating", "games", "win rate"):
+        table.add_column(column, justify="right" if column in ("env steps", "rating", "games", "win rate") else "left")
+    players = store.players()
+    names = {p.id: p.name for p in players}
+    for player in sorted(players, key=lambda p: -ratings.get(p.id, 0.0)):
+        wins = games = 0
+        for (attacker, team), (attacker_wins, n) in payoff.items():
+            if player.id == attacker:
+                wins, games = wins + attacker_wins, games + n
+            elif player.id == team:
+                wins, games = wins + n - attacker_wins, games + n
+        table.add_row(
+            player.name,
+            player.side,
+            player.kind,
+            str(player.reward_method or ""),
+            names.get(player.parent, ""),
+            str(player.env_steps),
+            f"{ratings[player.id]:.0f}" if player.id in ratings else "",
+            str(games),
+            f"{wins / games:.3f}" if games else "",
+        )
+    return table
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m league.status", description=__doc__.splitlines()[0])
+    parser.add_argument("--run-dir", type=Path, required=True)
+    parser.add_argument("--source", choices=["training", "evaluation"], help="count only these matches")
+    args = parser.parse_args(argv)
+    if not (args.run_dir / DB_NAME).exists():
+        print(f"error: no league database at {args.run_dir / DB_NAME}", file=sys.stderr)
+        return 2
+    store = LeagueStore(args.run_dir)
+    console = Console() if sys.stdout.isatty() else Console(width=160)
+    last = store.last_iteration()
+    if last:
+        console.print(
+            f"iteration {last['iteration']}, phase {last['phase'] + 1} ({last['learner_side']} learning), "
+            f"{last['env_steps']} env steps, {last['episodes']} episodes, {last['steps_per_second']:.0f} steps/s"
+        )
+    else:
+        console.print("no iteration finished yet")
+    checkpoint = store.last_checkpoint()
+    if checkpoint:
+        console.print(f"last checkpoint: iteration {checkpoint[0]} at {checkpoint[1]}")
+    console.print(league_table(store, args.source))
+    store.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

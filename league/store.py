@@ -1,0 +1,190 @@
+"""League state in SQLite (``league.db`` in the run directory): the single source of truth.
+
+The coordinator writes one transaction per iteration holding that iteration's match
+results, new players, ratings, counters and, when it checkpointed, the checkpoint
+record; a kill mid-iteration therefore leaves the database at the previous iteration.
+On resume, rows of iterations after the last checkpoint are deleted
+(``rollback_after``), so nothing is counted twice. WAL mode lets ``league.status``
+read while training writes.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+from league.players import Player
+
+DB_NAME = "league.db"
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS players (
+    id INTEGER PRIMARY KEY,
+    side TEXT NOT NULL,
+    kind TEXT NOT NULL,
+    version INTEGER NOT NULL,
+    reward_method INTEGER,
+    parent INTEGER REFERENCES players(id),
+    scripted_attacker TEXT,
+    scripted_targeter TEXT,
+    scripted_defender TEXT,
+    env_steps INTEGER NOT NULL DEFAULT 0,
+    checkpoint TEXT,                 -- saved module directory, relative to the run directory
+    created_iteration INTEGER NOT NULL,
+    created_at TEXT NOT NULL DEFAULT (datetime('now'))
+);
+CREATE TABLE IF NOT EXISTS matches (
+    iteration INTEGER NOT NULL,
+    source TEXT NOT NULL,            -- 'training' or 'evaluation'
+    attacker INTEGER NOT NULL REFERENCES players(id),
+    team INTEGER NOT NULL REFERENCES players(id),
+    outcome TEXT NOT NULL,           -- an envs.agents.Outcome label
+    count INTEGER NOT NULL
+);
+CREATE TABLE IF NOT EXISTS ratings (
+    iteration INTEGER NOT NULL,
+    player INTEGER NOT NULL REFERENCES players(id),
+    rating REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS iterations (
+    iteration INTEGER PRIMARY KEY,
+    phase INTEGER NOT NULL,
+    learner_side TEXT NOT NULL,
+    env_steps INTEGER NOT NULL,      -- total so far
+    episodes INTEGER NOT NULL,       -- total so far
+    steps_per_second REAL NOT NULL,
+    wall_seconds REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS checkpoints (
+    iteration INTEGER PRIMARY KEY,
+    path TEXT NOT NULL,              -- relative to the run directory
+    state TEXT NOT NULL,             -- the coordinator's RunState at this checkpoint (JSON)
+    created_at TEXT NOT NULL DEFAULT (datetime('now'))
+);
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+"""
+
+PLAYER_COLUMNS = (
+    "id, side, kind, version, reward_method, parent, scripted_attacker, scripted_targeter, "
+    "scripted_defender, env_steps, checkpoint, created_iteration"
+)
+
+
+class LeagueStore:
+    def __init__(self, run_dir: Path, create: bool = False):
+        path = Path(run_dir) / DB_NAME
+        if not create and not path.exists():
+            raise FileNotFoundError(f"no league database at {path}")
+        self.path = path
+        self.db = sqlite3.connect(path, isolation_level=None, timeout=30.0)
+        self.db.execute("PRAGMA journal_mode=WAL")
+        self.db.execute("PRAGMA foreign_keys=ON")
+        if create:
+            self.db.executescript(SCHEMA)
+
+    def close(self) -> None:
+        self.db.close()
+
+    @contextmanager
+    def transaction(self) -> Iterator[None]:
+        self.db.execute("BEGIN IMMEDIATE")
+        try:
+            yield
+        except BaseException:
+            self.db.execute("ROLLBACK")
+            raise
+        self.db.execute("COMMIT")
+
+    # ---------------------------------------------------------------- meta
+    def set_meta(self, key: str, value: Any) -> None:
+        self.db.execute("INSERT OR REPLACE INTO meta VALUES (?, ?)", (key, json.dumps(value)))
+
+    def get_meta(self, key: str, default: Any = None) -> Any:
+        row = self.db.execute("SELECT value FROM meta WHERE key = ?", (key,)).fetchone()
+        return json.loads(row[0]) if row else default
+
+    # ---------------------------------------------------------------- players
+    def add_player(self, iteration: int, **columns: Any) -> Player:
+        names = ", ".join(columns) + ", created_iteration"
+        marks = ", ".join("?" for _ in range(len(columns) + 1))
+        cursor = self.db.execute(f"INSERT INTO players ({names}) VALUES ({marks})", (*columns.values(), iteration))
+        return self.player(cursor.lastrowid)
+
+    def player(self, player_id: int) -> Player:
+        row = self.db.execute(f"SELECT {PLAYER_COLUMNS} FROM players WHERE id = ?", (player_id,)).fetchone()
+        if row is None:
+            raise KeyError(f"no player with id {player_id}")
+        return Player(*row)
+
+    def players(self, side: str | None = None, kind: str | None = None) -> list[Player]:
+        rows = self.db.execute(
+            f"SELECT {PLAYER_COLUMNS} FROM players WHERE (?1 IS NULL OR side = ?1) AND (?2 IS NULL OR kind = ?2) "
+            "ORDER BY id",
+            (side, kind),
+        ).fetchall()
+        return [Player(*row) for row in rows]
+
+    def set_player_steps(self, player_id: int, env_steps: int) -> None:
+        self.db.execute("UPDATE players SET env_steps = ? WHERE id = ?", (env_steps, player_id))
+
+    # ---------------------------------------------------------------- results
+    def record_matches(self, iteration: int, source: str, rows: list[tuple[int, int, str, int]]) -> None:
+        """``(attacker_id, team_id, outcome, count)`` rows."""
+        self.db.executemany(
+            "INSERT INTO matches VALUES (?, ?, ?, ?, ?, ?)",
+            [(iteration, source, a, t, outcome, n) for a, t, outcome, n in rows],
+        )
+
+    def match_rows(self, source: str | None = None, since_iteration: int = 0) -> list[tuple[int, int, str, int]]:
+        return self.db.execute(
+            "SELECT attacker, team, outcome, SUM(count) FROM matches "
+            "WHERE (?1 IS NULL OR source = ?1) AND iteration >= ?2 GROUP BY attacker, team, outcome",
+            (source, since_iteration),
+        ).fetchall()
+
+    def record_ratings(self, iteration: int, ratings: dict[int, float]) -> None:
+        self.db.executemany("INSERT INTO ratings VALUES (?, ?, ?)", [(iteration, p, r) for p, r in ratings.items()])
+
+    def latest_ratings(self) -> dict[int, float]:
+        rows = self.db.execute(
+            "SELECT player, rating FROM ratings WHERE iteration = (SELECT MAX(iteration) FROM ratings)"
+        ).fetchall()
+        return dict(rows)
+
+    def record_iteration(self, iteration: int, **columns: Any) -> None:
+        names = ", ".join(columns)
+        marks = ", ".join("?" for _ in columns)
+        self.db.execute(f"INSERT INTO iterations (iteration, {names}) VALUES (?, {marks})", (iteration, *columns.values()))
+
+    def last_iteration(self) -> dict[str, Any] | None:
+        cursor = self.db.execute("SELECT * FROM iterations ORDER BY iteration DESC LIMIT 1")
+        row = cursor.fetchone()
+        return dict(zip([c[0] for c in cursor.description], row)) if row else None
+
+    def iteration_count(self) -> int:
+        return self.db.execute("SELECT COUNT(*) FROM iterations").fetchone()[0]
+
+    # ---------------------------------------------------------------- checkpoints
+    def record_checkpoint(self, iteration: int, path: str, state: str) -> None:
+        self.db.execute(
+            "INSERT OR REPLACE INTO checkpoints (iteration, path, state) VALUES (?, ?, ?)", (iteration, path, state)
+        )
+
+    def checkpoints(self) -> list[tuple[int, str]]:
+        return self.db.execute("SELECT iteration, path FROM checkpoints ORDER BY iteration").fetchall()
+
+    def last_checkpoint(self) -> tuple[int, str, dict[str, Any]] | None:
+        row = self.db.execute("SELECT iteration, path, state FROM checkpoints ORDER BY iteration DESC LIMIT 1").fetchone()
+        return (row[0], row[1], json.loads(row[2])) if row else None
+
+    def rollback_after(self, iteration: int) -> None:
+        """Forget everything written after ``iteration`` (work a resume will redo)."""
+        with self.transaction():
+            for table in ("matches", "ratings"):
+                self.db.execute(f"DELETE FROM {table} WHERE iteration > ?", (iteration,))
+            self.db.execute("DELETE FROM iterations WHERE iteration > ?", (iteration,))
+            self.db.execute("DELETE FROM checkpoints WHERE iteration > ?", (iteration,))
+            self.db.execute("DELETE FROM players WHERE created_iteration > ?", (iteration,))

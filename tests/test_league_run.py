@@ -1,0 +1,130 @@
+"""End-to-end league runs in subprocesses (each starts and stops its own Ray)."""
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+TINY = """
+name: tiny
+seed: 1
+game: {{terminal_reward: 1.0}}
+ppo: {{train_batch_size: 200, minibatch_size: 100, num_epochs: 1, hidden: [16]}}
+resources: {{num_cpus: 2, num_env_runners: 0, num_envs_per_env_runner: 4}}
+league:
+  mode: selfplay
+  selfplay_phases: {phases}
+  min_phase_episodes: 100000
+  phase_env_steps: {phase_steps}
+evaluation: {{episodes: 20}}
+checkpoint_every: 1
+"""
+RUN_TIMEOUT = 600
+
+
+def league(*args, **kwargs):
+    return subprocess.Popen(
+        [sys.executable, "-m", "league.run", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,  # its own process group: the kill below reaches only this run
+        **kwargs,
+    )
+
+
+def query(run_dir: Path, sql: str):
+    with sqlite3.connect(run_dir / "league.db", timeout=30) as db:
+        return db.execute(sql).fetchall()
+
+
+def finish(proc) -> str:
+    out, _ = proc.communicate(timeout=RUN_TIMEOUT)
+    assert proc.returncode == 0, out[-3000:]
+    return out
+
+
+@pytest.fixture
+def tiny_config(tmp_path):
+    def make(phases, phase_steps):
+        path = tmp_path / f"tiny_{phases}_{phase_steps}.yaml"
+        path.write_text(TINY.format(phases=phases, phase_steps=phase_steps))
+        return str(path)
+
+    return make
+
+
+def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
+    run_dir = tmp_path / "run"
+    out = finish(league("--config", tiny_config(3, 400), "--run-dir", str(run_dir)))
+    snapshots = query(run_dir, "SELECT side, version, checkpoint FROM players WHERE kind = 'snapshot' ORDER BY id")
+    # v0 of both sides at the start, then one snapshot per phase: attacker, team, attacker.
+    assert [(s, v) for s, v, _ in snapshots] == [("attacker", 0), ("team", 0), ("attacker", 1), ("team", 1), ("attacker", 2)]
+    assert all((run_dir / path / "module_state.pkl").exists() for _, _, path in snapshots)
+    phases = query(run_dir, "SELECT DISTINCT phase, learner_side FROM iterations ORDER BY phase")
+    assert phases == [(0, "attacker"), (1, "team"), (2, "attacker")]
+    assert query(run_dir, "SELECT COUNT(*) FROM matches WHERE source = 'training'")[0][0] > 0
+    assert query(run_dir, "SELECT COUNT(DISTINCT attacker || '-' || team) FROM matches WHERE source = 'evaluation'")[0][0] == 4 * 3  # attackers: scripted, v0-v2; teams: scripted, v0, v1
+    assert (run_dir / "evaluation.md").read_text().count("\n| ") >= 12
+    assert list((run_dir / "tensorboard").glob("events.out.tfevents.*"))
+    last_checkpoint = query(run_dir, "SELECT path FROM checkpoints ORDER BY iteration DESC LIMIT 1")[0][0]
+    assert (run_dir / last_checkpoint / "rllib_checkpoint.json").exists()
+    assert "steps/s" in out and "snapshot attacker-v2" in out
+
+    status = subprocess.run(
+        [sys.executable, "-m", "league.status", "--run-dir", str(run_dir)], capture_output=True, text=True, check=True
+    )
+    assert "attacker-v2" in status.stdout and "scripted-lead_intercept" in status.stdout and "rating" in status.stdout
+
+
+def test_existing_run_dir_is_refused(tmp_path, tiny_config):
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    (run_dir / "league.db").write_text("")
+    proc = subprocess.run(
+        [sys.executable, "-m", "league.run", "--config", tiny_config(1, 200), "--run-dir", str(run_dir)],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 2 and "--resume" in proc.stderr
+
+
+def test_resume_after_sigkill_loses_and_duplicates_nothing(tmp_path, tiny_config):
+    run_dir = tmp_path / "run"
+    proc = league("--config", tiny_config(4, 600), "--run-dir", str(run_dir))
+    deadline = time.monotonic() + RUN_TIMEOUT
+    committed = 0
+    while committed < 4:
+        assert proc.poll() is None, proc.stdout.read()[-3000:]
+        assert time.monotonic() < deadline, "the run did not reach iteration 4 in time"
+        time.sleep(0.5)
+        if (run_dir / "league.db").exists():
+            committed = query(run_dir, "SELECT COUNT(*) FROM iterations")[0][0]
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=60)
+    before = query(run_dir, "SELECT * FROM iterations ORDER BY iteration")
+    resumed_from = query(run_dir, "SELECT MAX(iteration) FROM checkpoints")[0][0]
+    assert resumed_from >= 4
+
+    out = finish(league("--resume", str(run_dir)))
+    assert f"resumed at iteration {resumed_from}" in out
+    after = query(run_dir, "SELECT * FROM iterations ORDER BY iteration")
+    assert after[: len(before)] == before[:resumed_from]  # committed history kept as it was
+    numbers = [row[0] for row in after]
+    assert numbers == list(range(1, len(numbers) + 1))  # no gap, no repeat
+    env_steps = [row[3] for row in after]
+    assert env_steps == sorted(env_steps)
+    # Every finished episode counted once: the running total equals the recorded matches.
+    total_episodes = after[-1][4]
+    assert total_episodes == query(run_dir, "SELECT SUM(count) FROM matches WHERE source = 'training'")[0][0]
+    versions = query(run_dir, "SELECT side, version FROM players WHERE kind = 'snapshot' ORDER BY side, version")
+    assert versions == [("attacker", 0), ("attacker", 1), ("attacker", 2), ("team", 0), ("team", 1), ("team", 2)]
+    phases = [row[0] for row in query(run_dir, "SELECT DISTINCT phase FROM iterations ORDER BY phase")]
+    assert phases == [0, 1, 2, 3]
+    assert (run_dir / "evaluation.md").exists()
+    assert not list((run_dir / "checkpoints").glob("*.partial"))

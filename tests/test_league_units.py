@@ -1,0 +1,164 @@
+"""League pieces that need no running Ray: config, PFSP, match plans, payoff, modules, store."""
+
+import numpy as np
+import pytest
+import torch
+
+from league.config import ConfigError, RunConfig, load_config
+from league.evaluation import wilson_interval
+from league.payoff import elo_ratings, win_rate
+from league.pfsp import pfsp_probabilities
+from league.rllib_bridge import MatchPlan, learner_spec
+from league.run import main as run_main
+from league.store import LeagueStore
+from ray.rllib.core.columns import Columns
+
+
+# ---------------------------------------------------------------- config
+def write(tmp_path, text):
+    path = tmp_path / "run.yaml"
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        ("name: x\nppo: {learning_rate: 0.1}\n", "ppo.learning_rate"),
+        ("name: x\nppo: {train_batch_size: lots}\n", "ppo.train_batch_size"),
+        ("name: x\ngame: {v_attacker: 0.1}\n", "v_attacker"),
+        ("name: x\nppo: {train_batch_size: 100, minibatch_size: 200}\n", "minibatch_size"),
+        ("name: x\nleague: {scripted_attackers: [teleport]}\n", "teleport"),
+        ("name: x\nleague: {mode: protocol}\n", "phases"),
+        ("seed: 1\n", "name"),
+    ],
+)
+def test_invalid_config_names_the_key(tmp_path, text, key):
+    with pytest.raises(ConfigError, match=key):
+        load_config(write(tmp_path, text))
+
+
+def test_every_shipped_config_is_valid():
+    for name in ("smoke", "attacker_method1", "attacker_method2", "attacker_method3", "selfplay_league"):
+        assert load_config(name).name == name
+
+
+def test_set_overrides_and_bad_yaml(tmp_path):
+    config = load_config("smoke", ["ppo.lr=0.001", "game.attacker_reward=3"])
+    assert config.ppo.lr == 0.001 and config.game.attacker_reward == 3
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        load_config(write(tmp_path, "name: [x\n"))
+    with pytest.raises(ConfigError, match="not found"):
+        load_config("no_such_config")
+    with pytest.raises(ConfigError, match="key=value"):
+        load_config("smoke", ["ppo.lr"])
+
+
+def test_run_exits_2_on_bad_config_and_writes_nothing(tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    assert run_main(["--config", write(tmp_path, "name: x\nppo: {bogus: 1}\n"), "--run-dir", str(run_dir)]) == 2
+    assert "ppo.bogus" in capsys.readouterr().err
+    assert not run_dir.exists()
+    assert run_main(["--config", "smoke", "--run-dir", str(run_dir), "--set", "league.pfsp=best"]) == 2
+    assert "league.pfsp" in capsys.readouterr().err and not run_dir.exists()
+
+
+def test_resume_of_a_non_run_exits_2(tmp_path, capsys):
+    assert run_main(["--resume", str(tmp_path)]) == 2
+    assert "not a league run directory" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- PFSP and match plans
+def test_pfsp_weightings():
+    np.testing.assert_allclose(pfsp_probabilities([0.0, 0.5, 1.0], "squared"), [0.8, 0.2, 0.0])
+    np.testing.assert_allclose(pfsp_probabilities([0.5, 0.9], "variance"), [0.25 / 0.34, 0.09 / 0.34])
+    np.testing.assert_allclose(pfsp_probabilities([0.2, 0.9], "uniform"), [0.5, 0.5])
+    np.testing.assert_allclose(pfsp_probabilities([1.0, 1.0], "squared"), [0.5, 0.5])  # all zero: uniform
+    with pytest.raises(ValueError):
+        pfsp_probabilities([], "squared")
+
+
+class FakeEpisode:
+    def __init__(self, id_):
+        self.id_ = id_
+
+
+def test_match_plan_decides_once_per_episode_and_follows_the_probabilities():
+    opponents = [{"attacker": "a0"}, {"attacker": "a1"}, {"attacker": "a2"}]
+    plan = MatchPlan({"targeter": "team", "defender": "team"}, opponents, [0.6, 0.3, 0.1], seed=5)
+    counts = np.zeros(3)
+    for i in range(6000):
+        episode = FakeEpisode(f"{i:032x}")
+        chosen = plan("attacker", episode)
+        assert plan("attacker", episode) == chosen  # asked again: same answer
+        assert plan("targeter", episode) == plan("defender", episode) == "team"  # one shared team module
+        counts[int(chosen[1])] += 1
+    expected = np.array([0.6, 0.3, 0.1]) * 6000
+    assert np.all(np.abs(counts - expected) < 4 * np.sqrt(expected))
+
+
+# ---------------------------------------------------------------- payoff and intervals
+def test_unplayed_pair_is_even_and_elo_orders_players():
+    assert win_rate(0, 0) == 0.5
+    ratings = elo_ratings([(1, 2, 80, 100), (3, 2, 20, 100)], [1, 2, 3])
+    assert ratings[1] > ratings[2] > ratings[3]
+    even = elo_ratings([(1, 2, 50, 100)], [1, 2])
+    assert even[1] == pytest.approx(even[2])
+
+
+@pytest.mark.parametrize(
+    "wins, games, low, high", [(0, 10, 0.0, 0.2775), (5, 10, 0.2366, 0.7634), (8, 10, 0.4902, 0.9433)]
+)
+def test_wilson_interval_known_values(wins, games, low, high):
+    assert wilson_interval(wins, games) == pytest.approx((low, high), abs=1e-4)
+
+
+# ---------------------------------------------------------------- the team's centralized critic
+@pytest.fixture(scope="module")
+def modules():
+    run = RunConfig(name="t", ppo={"hidden": [16, 16]})
+    return {side: learner_spec(run, side).build() for side in ("attacker", "team")}
+
+
+def test_team_critic_reads_the_global_state_and_the_actor_does_not(modules):
+    team = modules["team"]
+    obs = torch.randn(8, team.observation_space.shape[0])
+    own = team.actor_inputs
+    assert obs.shape[1] - own == 22  # the appended global state
+    other_own = obs.clone()
+    other_own[:, :own] = torch.randn(8, own)
+    other_state = obs.clone()
+    other_state[:, own:] = torch.randn(8, 22)
+    values = team.compute_values({Columns.OBS: obs})
+    torch.testing.assert_close(team.compute_values({Columns.OBS: other_own}), values)
+    assert not torch.allclose(team.compute_values({Columns.OBS: other_state}), values)
+    actions = team.deterministic_action(obs)
+    torch.testing.assert_close(team.deterministic_action(other_state), actions)
+    assert not torch.allclose(team.deterministic_action(other_own), actions)
+
+
+def test_attacker_critic_is_local(modules):
+    attacker = modules["attacker"]
+    obs = torch.randn(8, attacker.observation_space.shape[0])
+    other_state = obs.clone()
+    other_state[:, attacker.actor_inputs :] = torch.randn(8, 22)
+    torch.testing.assert_close(attacker.compute_values({Columns.OBS: other_state}), attacker.compute_values({Columns.OBS: obs}))
+
+
+# ---------------------------------------------------------------- store
+def test_rollback_forgets_later_iterations(tmp_path):
+    store = LeagueStore(tmp_path, create=True)
+    with store.transaction():
+        a = store.add_player(0, side="attacker", kind="scripted", version=0, scripted_attacker="lead_intercept")
+        t = store.add_player(0, side="team", kind="learner", version=0)
+    for iteration in (1, 2, 3):
+        with store.transaction():
+            store.record_matches(iteration, "training", [(a.id, t.id, "captured", 2)])
+            store.record_iteration(iteration, phase=0, learner_side="team", env_steps=iteration, episodes=2 * iteration,
+                                   steps_per_second=1.0, wall_seconds=1.0)
+            if iteration == 2:
+                store.add_player(iteration, side="team", kind="snapshot", version=1, parent=t.id)
+    store.rollback_after(1)
+    assert store.iteration_count() == 1
+    assert store.match_rows() == [(a.id, t.id, "captured", 2)]
+    assert [p.kind for p in store.players()] == ["scripted", "learner"]
