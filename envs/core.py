@@ -38,6 +38,7 @@ class StepResult:
     done: np.ndarray  # (N,) bool: the game ended on this step
     outcome: np.ndarray  # (N,) int: an ``Outcome`` value, RUNNING if still going
     event_fraction: np.ndarray  # (N,) float: when in the step the ending event happened (1 for timeout)
+    attacker_rewards: np.ndarray  # (N, 3) float: A's reward under methods 1, 2, 3 (with any terminal reward)
 
 
 class BatchedGame:
@@ -155,23 +156,31 @@ class BatchedGame:
         outcome = np.where(running, outcome, self.outcome)
         event_fraction = np.where(np.isfinite(event_fraction), event_fraction, 1.0)
 
-        reward = self._rewards(before, after)
+        reward, attacker_rewards = self._rewards(before, after)
         done = running & (outcome != RUNNING)
         if cfg.terminal_reward:
             attacker_won = (outcome == CAPTURED) | (outcome == TIMEOUT)
-            sign = np.where(attacker_won, 1.0, -1.0)[:, None] * np.array([1.0, -1.0, -1.0])
-            reward = reward + np.where(done[:, None], cfg.terminal_reward * sign, 0.0)
+            bonus = np.where(done & attacker_won, cfg.terminal_reward, np.where(done, -cfg.terminal_reward, 0.0))
+            reward = reward + bonus[:, None] * np.array([1.0, -1.0, -1.0])
+            attacker_rewards = attacker_rewards + bonus[:, None]
         reward = np.where(running[:, None], reward, 0.0)
+        attacker_rewards = np.where(running[:, None], attacker_rewards, 0.0)
 
         keep = ~running
         self.positions = np.where(keep[:, None, None], before, after)
         self.headings = np.where(keep[:, None, None], self.headings, headings)
         self.steps = np.where(running, steps, self.steps)
         self.outcome = outcome
-        return StepResult(reward, done, outcome, event_fraction)
+        return StepResult(reward, done, outcome, event_fraction, attacker_rewards)
 
-    def _rewards(self, before: np.ndarray, after: np.ndarray) -> np.ndarray:
-        """Rewards ``(N, 3)`` of the step ``before -> after``; updates the attacker's memory."""
+    def _rewards(self, before: np.ndarray, after: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rewards of the step ``before -> after``; updates the attacker's memory.
+
+        Returns ``(rewards (N, 3 agents), attacker rewards (N, 3 methods))``: all three
+        attacker methods are computed every step, so that a league can train attackers
+        of different methods on the same games; column 0 of the first uses the
+        configured method.
+        """
         cfg = self.config
         gamma_steps = self.time_limit.astype(np.float64)
         running = self.active
@@ -179,23 +188,21 @@ class BatchedGame:
         d_da = norm(after[:, DEFENDER] - after[:, ATTACKER])
         velocity = after[:, TARGETER] - before[:, TARGETER]
 
-        if cfg.attacker_reward == 1:
-            r_a = rewards.attacker_method1(
-                norm(before[:, ATTACKER] - before[:, TARGETER]), d_at,
-                norm(before[:, ATTACKER] - before[:, DEFENDER]), d_da, gamma_steps,
-            )
-        elif cfg.attacker_reward == 2:
-            aim = lead_intercept(before[:, ATTACKER], cfg.v_attacker, before[:, TARGETER], self.targeter_velocity)
-            offset = angle_between(after[:, ATTACKER] - before[:, ATTACKER], aim - before[:, ATTACKER])
-            r_a = rewards.attacker_method2(offset, cfg.sigma_a, gamma_steps)
-        else:
-            collision_distance = self._collision_distance(after, velocity)
-            r_a, count = rewards.attacker_method3(
-                self.collision_distance, collision_distance, self.overchase_count, cfg.overchase_gamma, gamma_steps
-            )
-            self.collision_distance = np.where(running, collision_distance, self.collision_distance)
-            self.overchase_count = np.where(running, count, self.overchase_count)
+        method1 = rewards.attacker_method1(
+            norm(before[:, ATTACKER] - before[:, TARGETER]), d_at,
+            norm(before[:, ATTACKER] - before[:, DEFENDER]), d_da, gamma_steps,
+        )
+        aim = lead_intercept(before[:, ATTACKER], cfg.v_attacker, before[:, TARGETER], self.targeter_velocity)
+        offset = angle_between(after[:, ATTACKER] - before[:, ATTACKER], aim - before[:, ATTACKER])
+        method2 = rewards.attacker_method2(offset, cfg.sigma_a, gamma_steps)
+        collision_distance = self._collision_distance(after, velocity)
+        method3, count = rewards.attacker_method3(
+            self.collision_distance, collision_distance, self.overchase_count, cfg.overchase_gamma, gamma_steps
+        )
+        self.collision_distance = np.where(running, collision_distance, self.collision_distance)
+        self.overchase_count = np.where(running, count, self.overchase_count)
         self.targeter_velocity = np.where(running[:, None], velocity, self.targeter_velocity)
 
+        by_method = np.stack((method1, method2, method3), axis=1)
         r_t, r_d = rewards.team_rewards(norm(after[:, TARGETER]), d_at, d_da, cfg.w_t1, cfg.w_t2, gamma_steps)
-        return np.stack((r_a, r_t, r_d), axis=1)
+        return np.stack((by_method[:, cfg.attacker_reward - 1], r_t, r_d), axis=1), by_method

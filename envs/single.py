@@ -89,4 +89,7 @@ class SingleGame:
         if done:
             outcome = Outcome(int(result.outcome[0]))
             info.update(outcome=outcome.label, attacker_won=outcome.attacker_wins)
-        return self.observations(), rewards, done, {agent: dict(info) for agent in AGENTS}
+        infos = {agent: dict(info) for agent in AGENTS}
+        # A's reward under each method (1, 2, 3), for leagues mixing attacker reward methods.
+        infos["attacker"]["attacker_rewards"] = [float(r) for r in result.attacker_rewards[0]]
+        return self.observations(), rewards, done, infos

@@ -90,6 +90,8 @@ class LeagueSettings(Strict):
     """...or once it has sampled this many env steps."""
     pfsp: Literal["squared", "variance", "uniform"] = "squared"
     """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat."""
+    attacker_reward_methods: list[Literal[1, 2, 3]] | None = None
+    """Train one attacker per listed reward method side by side; default: ``game.attacker_reward`` only."""
     scripted_attackers: list[str] = Field(default_factory=lambda: ["lead_intercept"])
     scripted_teams: list[ScriptedTeam] = Field(default_factory=lambda: [ScriptedTeam()])
 
@@ -102,6 +104,10 @@ class LeagueSettings(Strict):
             raise ValueError("protocol mode needs at least one entry in `phases`")
         if self.mode == "protocol" and self.phases[0].opponents == "latest":
             raise ValueError("the first protocol phase has no snapshot to play: use opponents: scripted")
+        if self.attacker_reward_methods is not None and (
+            not self.attacker_reward_methods or len(set(self.attacker_reward_methods)) != len(self.attacker_reward_methods)
+        ):
+            raise ValueError("attacker_reward_methods must list distinct methods (1, 2, 3), at least one")
         if not self.scripted_attackers or not self.scripted_teams:
             raise ValueError("the league needs at least one scripted attacker and one scripted team")
         return self
@@ -128,6 +134,12 @@ class RunConfig(Strict):
         if self.ppo.minibatch_size > self.ppo.train_batch_size:
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
         return self
+
+
+    @property
+    def attacker_methods(self) -> list[int]:
+        """The reward methods of the learning attackers."""
+        return list(self.league.attacker_reward_methods or [self.game.attacker_reward])
 
 
 def resolve_path(name: str) -> Path:

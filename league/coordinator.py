@@ -29,7 +29,7 @@ from league import rllib_bridge as bridge
 from league.config import RunConfig
 from league.payoff import aggregate, elo_ratings, win_rate
 from league.pfsp import pfsp_probabilities
-from league.players import LEARNER_MODULES, Player, other_side
+from league.players import Player, other_side
 from league.progress import ProgressReporter
 from league.store import LeagueStore
 
@@ -55,7 +55,7 @@ class RunState:
     iteration: int = 0
     env_steps: int = 0
     episodes: int = 0
-    learner_env_steps: dict[str, int] = field(default_factory=lambda: {"attacker": 0, "team": 0})
+    learner_env_steps: dict[str, int] = field(default_factory=dict)  # by learner name
     training_done: bool = False
     rng: dict[str, Any] = field(default_factory=dict)
 
@@ -86,8 +86,8 @@ class Coordinator:
             self.rng.bit_generator.state = state.rng
 
     # ------------------------------------------------------------ league views
-    def learner(self, side: str) -> Player:
-        return next(p for p in self.store.players(side=side, kind="learner"))
+    def learners(self, side: str) -> list[Player]:
+        return self.store.players(side=side, kind="learner")
 
     def module_players(self) -> tuple[dict[str, Player], dict[tuple[str, str], Player]]:
         """Players by attacker module, and team players by (targeter, defender) module."""
@@ -126,22 +126,28 @@ class Coordinator:
             rates.append(win_rate(wins, games))
         return rates
 
-    def match_plan(self) -> tuple[bridge.MatchPlan, list[Player], np.ndarray]:
+    def match_plan(self) -> tuple[bridge.MatchPlan, dict[str, dict[str, float]]]:
+        """This iteration's plan, and each learner's PFSP probability per opponent name."""
         side = self.state.phase.side
-        learner = self.learner(side)
+        learners = self.learners(side)
         opponents = self.candidates(side)
-        probabilities = pfsp_probabilities(self.learner_win_rates(learner, opponents), self.run.league.pfsp)
+        probabilities = [
+            pfsp_probabilities(self.learner_win_rates(learner, opponents), self.run.league.pfsp) for learner in learners
+        ]
         plan = bridge.MatchPlan(
-            learner_modules=learner.modules(),
-            opponent_modules=[o.modules() for o in opponents],
-            probabilities=probabilities.tolist(),
+            learners=[learner.modules() for learner in learners],
+            opponents=[[o.modules() for o in opponents]] * len(learners),
+            probabilities=[p.tolist() for p in probabilities],
             seed=int(self.rng.integers(2**31)),
         )
-        return plan, opponents, probabilities
+        weights = {
+            learner.name: {o.name: float(w) for o, w in zip(opponents, p)} for learner, p in zip(learners, probabilities)
+        }
+        return plan, weights
 
     # ------------------------------------------------------------ iteration
     def train_iteration(self, progress: ProgressReporter) -> None:
-        plan, opponents, probabilities = self.match_plan()
+        plan, weights = self.match_plan()
         bridge.set_match_plan(self.algo, plan)
         started = time.perf_counter()
         result = self.algo.train()
@@ -150,10 +156,10 @@ class Coordinator:
         st, phase = self.state, self.state.phase
         st.iteration += 1
         rows = self.match_rows(result)
-        learner = self.learner(phase.side)
+        learner_ids = {p.id for p in self.learners(phase.side)}
         for attacker, team, outcome, count in rows:
             st.episodes += count
-            if learner.id in (attacker, team):
+            if learner_ids & {attacker, team}:
                 phase.episodes += count
                 attacker_won = outcome in ATTACKER_WINS
                 phase.learner_wins += count if attacker_won == (phase.side == "attacker") else 0
@@ -161,20 +167,23 @@ class Coordinator:
         steps = total_steps - st.env_steps
         st.env_steps = total_steps
         phase.env_steps += steps
-        st.learner_env_steps[phase.side] += steps
+        learners = self.learners(phase.side)
+        for learner in learners:  # several learners split the phase's episodes evenly (uniform draw)
+            st.learner_env_steps[learner.name] = st.learner_env_steps.get(learner.name, 0) + steps // len(learners)
 
-        snapshot = None
+        snapshots = []
         if self.phase_finished():
-            snapshot = self.snapshot(phase.side)
+            snapshots = [self.snapshot(learner) for learner in self.learners(phase.side)]
             self.next_phase()
-        checkpoint = self.checkpoint() if snapshot or st.training_done or st.iteration % self.run.checkpoint_every == 0 else None
+        due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
+        checkpoint = self.checkpoint() if due else None
 
         with self.store.transaction():
             self.store.record_matches(st.iteration, "training", rows)
-            if snapshot is not None:
-                self.store.add_player(st.iteration, **snapshot)
-            for side, steps_done in st.learner_env_steps.items():
-                self.store.set_player_steps(self.learner(side).id, steps_done)
+            for columns in snapshots:
+                self.store.add_player(st.iteration, **columns)
+            for learner in self.store.players(kind="learner"):
+                self.store.set_player_steps(learner.id, st.learner_env_steps.get(learner.name, 0))
             ratings = elo_ratings(
                 [(a, t, w, n) for (a, t), (w, n) in aggregate(self.store.match_rows(), ATTACKER_WINS).items()],
                 [p.id for p in self.store.players()],
@@ -193,7 +202,7 @@ class Coordinator:
             if checkpoint is not None:
                 self.store.record_checkpoint(st.iteration, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(st)))
         self.prune_checkpoints()
-        progress.iteration(self, result, opponents, probabilities, steps / seconds, snapshot)
+        progress.iteration(self, result, weights, steps / seconds, [self.store_name(c) for c in snapshots])
 
     def match_rows(self, result: dict[str, Any]) -> list[tuple[int, int, str, int]]:
         attackers, teams = self.module_players()
@@ -222,14 +231,19 @@ class Coordinator:
         self.set_trainable(side)
 
     def set_trainable(self, side: str) -> None:
-        bridge.set_trainable(self.algo, [LEARNER_MODULES[side]])
+        bridge.set_trainable(self.algo, [learner.name for learner in self.learners(side)])
 
     # ------------------------------------------------------------ snapshots, checkpoints
-    def snapshot(self, side: str) -> dict[str, Any]:
-        """Freeze the ``side`` learner as a new league member; returns its player columns."""
-        learner = self.learner(side)
-        version = 1 + max((p.version for p in self.store.players(side=side, kind="snapshot")), default=-1)
-        player = Player(id=-1, side=side, kind="snapshot", version=version)
+    @staticmethod
+    def store_name(columns: dict[str, Any]) -> str:
+        return Player(id=-1, **columns).name
+
+    def snapshot(self, learner: Player) -> dict[str, Any]:
+        """Freeze a learner as a new league member; returns its player columns."""
+        side = learner.side
+        versions = [p.version for p in self.store.players(side=side, kind="snapshot") if p.reward_method == learner.reward_method]
+        version = 1 + max(versions, default=-1)
+        player = Player(id=-1, side=side, kind="snapshot", version=version, reward_method=learner.reward_method)
         bridge.add_snapshot(self.algo, self.run, player, learner.name)
         path = self.run_dir / "players" / player.name
         if path.exists():  # left over by a run killed before it committed this snapshot
@@ -241,7 +255,7 @@ class Coordinator:
             "version": version,
             "reward_method": learner.reward_method,
             "parent": learner.id,
-            "env_steps": self.state.learner_env_steps[side],
+            "env_steps": self.state.learner_env_steps.get(learner.name, 0),
             "checkpoint": str(path.relative_to(self.run_dir)),
         }
 

@@ -55,7 +55,7 @@ def load_module(path: str | Path) -> torch.nn.Module:
 
     if not Path(path, "module_state.pkl").exists():
         raise FileNotFoundError(f"no saved module at {path} (module_state.pkl missing)")
-    module = RLModule.from_checkpoint(str(path))
+    module = RLModule.from_checkpoint(str(Path(path).resolve()))
     module.eval()
     return module
 

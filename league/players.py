@@ -17,7 +17,6 @@ from typing import Literal
 
 Side = Literal["attacker", "team"]
 Kind = Literal["learner", "snapshot", "scripted"]
-LEARNER_MODULES: dict[str, str] = {"attacker": "attacker", "team": "team"}
 
 
 def other_side(side: str) -> str:
@@ -41,14 +40,17 @@ class Player:
 
     @property
     def name(self) -> str:
-        """Display name, also the snapshot's module id."""
-        if self.kind == "learner":
-            return LEARNER_MODULES[self.side]
-        if self.kind == "snapshot":
-            return f"{self.side}-v{self.version}"
-        if self.side == "attacker":
-            return f"scripted-{self.scripted_attacker}"
-        return f"scripted-{self.scripted_targeter}+{self.scripted_defender}"
+        """Display name, also the module id of learners and snapshots.
+
+        Attackers carry their reward method (``attacker-m2``, ``attacker-m2-v3``): a league
+        may train attackers of several methods side by side.
+        """
+        if self.kind == "scripted":
+            if self.side == "attacker":
+                return f"scripted-{self.scripted_attacker}"
+            return f"scripted-{self.scripted_targeter}+{self.scripted_defender}"
+        base = f"attacker-m{self.reward_method}" if self.side == "attacker" else "team"
+        return base if self.kind == "learner" else f"{base}-v{self.version}"
 
     def modules(self) -> dict[str, str]:
         """Module id per agent for the agents of this player's side."""

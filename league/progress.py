@@ -13,7 +13,6 @@ import numpy as np
 from rich.console import Console
 from tensorboardX import SummaryWriter
 
-from league.players import Player
 
 if TYPE_CHECKING:
     from league.coordinator import Coordinator
@@ -37,10 +36,9 @@ class ProgressReporter:
         self,
         coordinator: "Coordinator",
         result: dict[str, Any],
-        opponents: list[Player],
-        probabilities: np.ndarray,
+        weights: dict[str, dict[str, float]],
         steps_per_second: float,
-        snapshot: dict[str, Any] | None,
+        snapshots: list[str],
     ) -> None:
         st = coordinator.state
         phase = st.phase
@@ -51,7 +49,7 @@ class ProgressReporter:
             f"phase {phase.index + 1}/{self.total_phases} {side:8s} | iter {st.iteration:4d} | "
             f"{st.env_steps:8d} env steps | {steps_per_second:6.0f} steps/s | "
             f"{side} win rate {phase_rate:.2f} over {phase.episodes} ep | league {league_size}"
-            + (f" | snapshot {snapshot['side']}-v{snapshot['version']}" if snapshot else "")
+            + (f" | snapshot {', '.join(snapshots)}" if snapshots else "")
         )
         i = st.iteration
         self.scalar("perf/sps", steps_per_second, i)
@@ -59,10 +57,12 @@ class ProgressReporter:
         self.scalar("league/size", league_size, i)
         self.scalar("league/phase", phase.index, i)
         self.scalar(f"league/{side}_phase_win_rate", phase_rate, i)
-        for opponent, p in zip(opponents, probabilities):
-            self.scalar(f"league/pfsp/{opponent.name}", p, i)
+        for learner, opponents in weights.items():
+            for opponent, p in opponents.items():
+                self.scalar(f"league/pfsp/{learner}/{opponent}", p, i)
+        learner_names = {p.name for p in coordinator.store.players(kind="learner")}
         for module, stats in result.get("learners", {}).items():
-            if module in ("attacker", "team"):
+            if module in learner_names:
                 for key in TRAIN_METRICS:
                     self.scalar(f"train/{module}/{key}", stats.get(key), i)
         self.writer.flush()

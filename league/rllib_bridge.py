@@ -11,21 +11,23 @@
 from __future__ import annotations
 
 import random
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from envs.agents import AGENTS
 from envs.rllib_env import TargetDefenseMultiAgentEnv
 from league.config import RunConfig
 from league.modules import ActorCriticModule, ScriptedModule
-from league.players import LEARNER_MODULES, Player
+from league.players import Player
 from ray.rllib.algorithms.algorithm import Algorithm
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.callbacks.callbacks import RLlibCallback
+from ray.rllib.connectors.connector_v2 import ConnectorV2
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED_LIFETIME
@@ -49,7 +51,7 @@ def actor_inputs(run: RunConfig, agent: str) -> int:
     return TargetDefenseEnv(run.game).observation_space(agent).shape[0]
 
 
-def learner_spec(run: RunConfig, side: str) -> RLModuleSpec:
+def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) -> RLModuleSpec:
     env = probe_env(run)
     agent = "attacker" if side == "attacker" else "targeter"
     return RLModuleSpec(
@@ -60,6 +62,7 @@ def learner_spec(run: RunConfig, side: str) -> RLModuleSpec:
             "actor_inputs": actor_inputs(run, agent),
             "critic": "local" if side == "attacker" else "global",
             "hidden": run.ppo.hidden,
+            "reward_method": reward_method,
         },
     )
 
@@ -77,34 +80,62 @@ def scripted_spec(run: RunConfig, agent: str, name: str) -> RLModuleSpec:
 def player_specs(run: RunConfig, player: Player) -> dict[str, RLModuleSpec]:
     """Module id -> spec of every module the player needs."""
     if player.kind != "scripted":
-        return {player.name: learner_spec(run, player.side)}
+        return {player.name: learner_spec(run, player.side, player.reward_method)}
     return {module: scripted_spec(run, agent, module.split("-", 2)[2]) for agent, module in player.modules().items()}
+
+
+def _draw(seed: int, episode_id: str, salt: str, weights: list[float]) -> int:
+    """Index drawn with ``weights``, fixed by (seed, episode, salt): no state between calls."""
+    cumulative = np.cumsum(weights)
+    draw = random.Random(f"{seed}:{episode_id}:{salt}").random() * cumulative[-1]
+    return int(min(np.searchsorted(cumulative, draw, side="right"), len(weights) - 1))
 
 
 @dataclass
 class MatchPlan:
-    """Agent -> module mapping for one phase: the learner against PFSP-drawn opponents."""
+    """Agent -> module mapping for one phase.
 
-    learner_modules: dict[str, str]
-    opponent_modules: list[dict[str, str]]
-    probabilities: list[float]
+    Each episode draws one of the side's ``learners`` (uniformly), then that learner's
+    opponent with its PFSP ``probabilities``; both draws depend only on the seed and the
+    episode id, so every agent of an episode gets the same match.
+    """
+
+    learners: list[dict[str, str]]
+    opponents: list[list[dict[str, str]]]
+    probabilities: list[list[float]]
     seed: int
-    cumulative: list[float] = field(init=False)
 
-    def __post_init__(self) -> None:
-        total, self.cumulative = 0.0, []
-        for p in self.probabilities:
-            total += p
-            self.cumulative.append(total)
-
-    def opponent_index(self, episode_id: str) -> int:
-        draw = random.Random(f"{self.seed}:{episode_id}").random() * self.cumulative[-1]
-        return next((i for i, c in enumerate(self.cumulative) if draw < c), len(self.cumulative) - 1)
+    def match(self, episode_id: str) -> dict[str, str]:
+        k = _draw(self.seed, episode_id, "learner", [1.0] * len(self.learners))
+        opponent = self.opponents[k][_draw(self.seed, episode_id, "opponent", self.probabilities[k])]
+        return {**self.learners[k], **opponent}
 
     def __call__(self, agent_id: str, episode: Any = None, **kwargs: Any) -> str:
-        if agent_id in self.learner_modules:
-            return self.learner_modules[agent_id]
-        return self.opponent_modules[self.opponent_index(episode.id_)][agent_id]
+        return self.match(episode.id_)[agent_id]
+
+
+class AttackerRewardByMethod(ConnectorV2):
+    """Learner connector: pays each attacker module the reward of its own method.
+
+    The env reports A's reward under all three methods in its info
+    (``attacker_rewards``); this lets attackers of different methods share one league.
+    It runs after PPO's one-timestep extension, whose phantom last reward stays as is.
+    """
+
+    def __call__(self, *, rl_module: Any, batch: dict[str, Any], episodes: list[Any], **kwargs: Any) -> Any:
+        for episode in episodes:
+            attacker = episode.agent_episodes.get("attacker")
+            module_id = episode.module_for("attacker")
+            if attacker is None or module_id not in rl_module:
+                continue
+            method = (rl_module[module_id].model_config or {}).get("reward_method")
+            real_steps = len(attacker) - 1  # the last step is PPO's phantom bootstrap step
+            if not method or real_steps <= 0:
+                continue
+            infos = attacker.get_infos(slice(1, real_steps + 1))
+            rewards = np.array([info["attacker_rewards"][method - 1] for info in infos], dtype=np.float32)
+            attacker.set_rewards(new_data=rewards, at_indices=slice(0, real_steps))
+        return batch
 
 
 class MatchRecorder(RLlibCallback):
@@ -141,7 +172,8 @@ class LeaguePPOLearner(PPOTorchLearner):
 
 
 def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOConfig:
-    specs: dict[str, RLModuleSpec] = {side: learner_spec(run, side) for side in LEARNER_MODULES}
+    """PPO over every module the ``players`` need; only learners are ever trained."""
+    specs: dict[str, RLModuleSpec] = {}
     for player in players:
         specs.update(player_specs(run, player))
     res, ppo = run.resources, run.ppo
@@ -158,7 +190,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
         .multi_agent(
             policies=set(specs),
             policy_mapping_fn=plan,
-            policies_to_train=list(LEARNER_MODULES.values()),
+            policies_to_train=[p.name for p in players if p.kind == "learner"],
         )
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
         .training(
@@ -174,6 +206,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             num_epochs=ppo.num_epochs,
             vf_clip_param=float("inf"),
             learner_class=LeaguePPOLearner,
+            learner_connector=lambda observation_space, action_space: AttackerRewardByMethod(),
         )
         .fault_tolerance(restart_failed_env_runners=True)
         .callbacks(MatchRecorder)
@@ -199,10 +232,14 @@ def set_trainable(algo: Algorithm, module_ids: list[str]) -> None:
 
 def add_snapshot(algo: Algorithm, run: RunConfig, snapshot: Player, source_module: str) -> None:
     """Add a frozen copy of ``source_module`` as ``snapshot.name`` to learners and EnvRunners."""
-    algo.add_module(module_id=snapshot.name, module_spec=learner_spec(run, snapshot.side))
+    algo.add_module(module_id=snapshot.name, module_spec=learner_spec(run, snapshot.side, snapshot.reward_method))
     weights = algo.learner_group.get_weights(module_ids=[source_module])[source_module]
     algo.learner_group.set_weights({snapshot.name: weights})
-    algo.env_runner_group.sync_weights(from_worker_or_learner_group=algo.learner_group, inference_only=True)
+    # Set directly: a weight sync would be skipped, the EnvRunners already hold the
+    # learner group's current weights sequence number.
+    algo.env_runner_group.foreach_env_runner(
+        lambda runner: runner.module[snapshot.name].set_state(weights), local_env_runner=True
+    )
 
 
 def add_scripted(algo: Algorithm, run: RunConfig, player: Player) -> None:

@@ -75,7 +75,8 @@ def new_run(run: RunConfig, run_dir: Path) -> Coordinator:
     (run_dir / CONFIG_FILE).write_text(yaml.safe_dump(run.model_dump(mode="json"), sort_keys=False))
     store = LeagueStore(run_dir, create=True)
     with store.transaction():
-        store.add_player(0, side="attacker", kind="learner", version=0, reward_method=run.game.attacker_reward)
+        for method in run.attacker_methods:
+            store.add_player(0, side="attacker", kind="learner", version=0, reward_method=method)
         store.add_player(0, side="team", kind="learner", version=0)
         for name in run.league.scripted_attackers:
             store.add_player(0, side="attacker", kind="scripted", version=0, scripted_attacker=name)
@@ -83,16 +84,16 @@ def new_run(run: RunConfig, run_dir: Path) -> Coordinator:
             store.add_player(
                 0, side="team", kind="scripted", version=0, scripted_targeter=team.targeter, scripted_defender=team.defender
             )
-    scripted = store.players(kind="scripted")
     state = RunState(phase=PhaseState(index=0, side=phase_side(run, 0), start_iteration=0))
-    first_team = next(p for p in scripted if p.side == "team")
-    plan = bridge.MatchPlan({"attacker": "attacker"}, [first_team.modules()], [1.0], run.seed)
-    algo = bridge.build_config(run, scripted, plan).build_algo()
+    first_attacker = store.players(side="attacker", kind="learner")[0]
+    first_team = store.players(side="team", kind="scripted")[0]
+    plan = bridge.MatchPlan([first_attacker.modules()], [[first_team.modules()]], [[1.0]], run.seed)
+    algo = bridge.build_config(run, store.players(), plan).build_algo()
     coordinator = Coordinator(run, run_dir, store, algo, state)
     coordinator.rng = np.random.default_rng(run.seed)
     # The untrained policies join the league as version 0: the baseline every later
     # snapshot is measured against.
-    initial = [coordinator.snapshot(side) for side in ("attacker", "team")]
+    initial = [coordinator.snapshot(learner) for learner in store.players(kind="learner")]
     checkpoint = coordinator.checkpoint()
     with store.transaction():
         for columns in initial:

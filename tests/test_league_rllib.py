@@ -28,8 +28,12 @@ def algo():
     scripted_team = Player(
         id=4, side="team", kind="scripted", version=0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit"
     )
-    plan = MatchPlan({"targeter": "team", "defender": "team"}, [scripted_attacker.modules()], [1.0], seed=0)
-    algorithm = build_config(run, [scripted_attacker, scripted_team], plan).build_algo()
+    learners = [
+        Player(id=1, side="attacker", kind="learner", version=0, reward_method=2),
+        Player(id=2, side="team", kind="learner", version=0),
+    ]
+    plan = MatchPlan([{"targeter": "team", "defender": "team"}], [[scripted_attacker.modules()]], [[1.0]], seed=0)
+    algorithm = build_config(run, [*learners, scripted_attacker, scripted_team], plan).build_algo()
     yield algorithm
     algorithm.stop()
     ray.shutdown()
@@ -42,22 +46,76 @@ def test_one_shared_team_policy_plays_and_learns_for_both_t_and_d(algo):
     agents = result["env_runners"]["num_agent_steps_sampled"]
     assert agents["targeter"] > 0 and agents["defender"] > 0
     assert sampled["team"] == agents["targeter"] + agents["defender"]
-    assert trained(result, "team") > 0 and trained(result, "attacker") == 0
+    assert trained(result, "team") > 0 and trained(result, "attacker-m2") == 0
     modules = {m for m, _, _ in match_counts(result)}
     assert modules <= {("scripted-attacker-lead_intercept", "team", "team")} and modules
 
 
 def test_switching_sides_trains_only_the_attacker(algo):
     plan = MatchPlan(
-        {"attacker": "attacker"},
-        [{"targeter": "scripted-targeter-avoid_attacker", "defender": "scripted-defender-pure_pursuit"}],
-        [1.0],
+        [{"attacker": "attacker-m2"}],
+        [[{"targeter": "scripted-targeter-avoid_attacker", "defender": "scripted-defender-pure_pursuit"}]],
+        [[1.0]],
         seed=1,
     )
     set_match_plan(algo, plan)
-    set_trainable(algo, ["attacker"])
+    set_trainable(algo, ["attacker-m2"])
     algo.train()  # episodes begun under the old plan end here
     result = algo.train()
-    assert trained(result, "attacker") > 0 and trained(result, "team") == 0
+    assert trained(result, "attacker-m2") > 0 and trained(result, "team") == 0
     played = {m for m, _, _ in match_counts(result)}
-    assert ("attacker", "scripted-targeter-avoid_attacker", "scripted-defender-pure_pursuit") in played
+    assert ("attacker-m2", "scripted-targeter-avoid_attacker", "scripted-defender-pure_pursuit") in played
+
+
+def test_reward_connector_pays_each_attacker_module_its_own_method(algo):
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from league.rllib_bridge import AttackerRewardByMethod
+    from ray.rllib.connectors.learner.add_one_ts_to_episodes_and_truncate import AddOneTsToEpisodesAndTruncate
+
+    episodes = algo.env_runner.sample(num_episodes=3, random_actions=True, force_reset=True)
+    assert {ep.module_for("attacker") for ep in episodes} == {"attacker-m2"}
+    paid_by_env = [ep.agent_episodes["attacker"].get_rewards().copy() for ep in episodes]
+    method_three = {"attacker-m2": SimpleNamespace(model_config={"reward_method": 3})}  # env pays method 2
+    AddOneTsToEpisodesAndTruncate()(rl_module=method_three, batch={}, episodes=episodes, shared_data={})
+    AttackerRewardByMethod()(rl_module=method_three, batch={}, episodes=episodes)
+    changed = False
+    for episode, before in zip(episodes, paid_by_env):
+        attacker = episode.agent_episodes["attacker"]
+        real = len(attacker) - 1
+        infos = attacker.get_infos(slice(1, real + 1))
+        expected = [info["attacker_rewards"][2] for info in infos]
+        np.testing.assert_allclose(attacker.get_rewards()[:real], expected, rtol=1e-6)
+        np.testing.assert_allclose(before, [info["attacker_rewards"][1] for info in infos], rtol=1e-6)
+        changed |= not np.allclose(before, expected)
+    assert changed
+
+
+def test_snapshots_carry_the_learners_weights_into_sampling_files_and_checkpoints(algo, tmp_path):
+    import numpy as np
+    from ray.rllib.algorithms.algorithm import Algorithm
+
+    from league.evaluation import load_module
+    from league.rllib_bridge import add_snapshot, learner_weights, save_module
+
+    run = RunConfig(name="wiring", ppo={"hidden": [16]})
+    snapshot = Player(id=9, side="attacker", kind="snapshot", version=7, reward_method=2)
+    source = learner_weights(algo, "attacker-m2")
+    add_snapshot(algo, run, snapshot, "attacker-m2")
+    sampling = algo.get_module(snapshot.name).state_dict()
+    for key, value in source.items():
+        np.testing.assert_array_equal(sampling[key].numpy(), value)
+    save_module(algo, snapshot.name, tmp_path / "module")
+    saved = load_module(tmp_path / "module").state_dict()
+    for key, value in source.items():
+        np.testing.assert_array_equal(saved[key].numpy(), value)
+    algo.save_to_path(str(tmp_path / "checkpoint"))
+    restored = Algorithm.from_checkpoint(str(tmp_path / "checkpoint"))
+    try:
+        after = restored.get_module(snapshot.name).state_dict()  # a module added at run time comes back
+        for key, value in source.items():
+            np.testing.assert_array_equal(after[key].numpy(), value)
+    finally:
+        restored.stop()

@@ -74,12 +74,12 @@ def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
     assert list((run_dir / "tensorboard").glob("events.out.tfevents.*"))
     last_checkpoint = query(run_dir, "SELECT path FROM checkpoints ORDER BY iteration DESC LIMIT 1")[0][0]
     assert (run_dir / last_checkpoint / "rllib_checkpoint.json").exists()
-    assert "steps/s" in out and "snapshot attacker-v2" in out
+    assert "steps/s" in out and "snapshot attacker-m2-v2" in out
 
     status = subprocess.run(
         [sys.executable, "-m", "league.status", "--run-dir", str(run_dir)], capture_output=True, text=True, check=True
     )
-    assert "attacker-v2" in status.stdout and "scripted-lead_intercept" in status.stdout and "rating" in status.stdout
+    assert "attacker-m2-v2" in status.stdout and "scripted-lead_intercept" in status.stdout and "rating" in status.stdout
 
 
 def test_existing_run_dir_is_refused(tmp_path, tiny_config):

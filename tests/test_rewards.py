@@ -98,3 +98,18 @@ def test_core_method1_uses_distances_of_the_step():
     _, result = one_step(1, 0.0)
     # A-T shrinks by 0.18 - 0.13 = 0.05 (<= 0.1) and A-D does not shrink by 0.1: 3 / Gamma.
     assert result.rewards[0, 0] == pytest.approx(3 / 16)
+
+
+@pytest.mark.parametrize("terminal_reward", [0.0, 1.0])
+def test_all_attacker_methods_are_reported_and_the_configured_one_is_paid(terminal_reward):
+    positions = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 5.0, 0.0]]])
+    by_method = []
+    for method in (1, 2, 3):
+        game = BatchedGame(GameConfig(attacker_reward=method, terminal_reward=terminal_reward), 1)
+        game.reset(positions=positions)
+        result = game.step(np.zeros((1, 3, 2)))
+        assert result.rewards[0, 0] == result.attacker_rewards[0, method - 1]
+        by_method.append(result.attacker_rewards[0])
+    np.testing.assert_array_equal(by_method[0], by_method[1])
+    np.testing.assert_array_equal(by_method[0], by_method[2])
+    assert by_method[0][1] == pytest.approx(2 * 30 / 16)
