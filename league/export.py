@@ -1,0 +1,173 @@
+"""Export a league player's policy for use without Ray: TorchScript or ONNX.
+
+``python -m league.export --run-dir DIR --player latest-attacker --format torchscript --out attacker.pt``
+
+The exported module takes the observation the env gives the agent (PettingZoo layout,
+``envs.observations``; for the team policy including its role one-hot) as a float32
+batch ``(B, size)`` and returns the deterministic action ``(B, 2)``: the mean of the
+Gaussian policy, exactly what the league plays in evaluation. Nothing else is applied
+on the way in RLlib (no observation filter, no action normalisation); the env clips
+actions into its box, so the effective action is ``clamp(action, low, high)``.
+
+The metadata travels inside the file (TorchScript extra file ``metadata.json``; ONNX
+``metadata_props``): observation and action layout, game parameters, player, versions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import warnings
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import nn
+
+from envs.single import action_space, observation_space
+from league.players import Player
+from league.store import DB_NAME, LeagueStore
+
+METADATA_FILE = "metadata.json"
+FORMATS = ("torchscript", "onnx")
+
+
+class ExportError(ValueError):
+    pass
+
+
+class ExportedPolicy(nn.Module):
+    """The actor of a league ``ActorCriticModule``: own observation -> mean action."""
+
+    def __init__(self, actor: nn.Module, observation_size: int):
+        super().__init__()
+        self.actor = actor
+        self.observation_size = observation_size
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        return self.actor(observation[:, : self.observation_size])
+
+
+def resolve_player(store: LeagueStore, spec: str) -> Player:
+    """A player by id, by name, or ``latest-attacker`` / ``latest-team`` (newest snapshot)."""
+    players = store.players()
+    if spec in ("latest-attacker", "latest-team"):
+        side = spec.split("-", 1)[1]
+        snapshots = [p for p in players if p.side == side and p.kind == "snapshot"]
+        if not snapshots:
+            raise ExportError(f"the league has no {side} snapshot yet")
+        return snapshots[-1]
+    chosen = [p for p in players if str(p.id) == spec or p.name == spec]
+    if not chosen:
+        known = ", ".join(p.name for p in players if p.kind == "snapshot")
+        raise ExportError(f"no player {spec!r} in the league (snapshots: {known})")
+    if chosen[0].kind != "snapshot":
+        raise ExportError(f"player {spec!r} is {chosen[0].kind}: only snapshots have a saved policy to export")
+    return chosen[0]
+
+
+def load_policy(run_dir: Path, player: Player) -> tuple[nn.Module, Any]:
+    """The player's RLModule, with a clear error for a missing or unreadable checkpoint."""
+    from league.evaluation import load_module
+
+    path = run_dir / (player.checkpoint or "")
+    try:
+        return load_module(path)
+    except FileNotFoundError as err:
+        raise ExportError(f"checkpoint of {player.name} missing: {err}") from err
+    except Exception as err:  # a truncated or foreign file: unpickling fails in many ways
+        raise ExportError(f"checkpoint of {player.name} at {path} cannot be read: {type(err).__name__}: {err}") from err
+
+
+def metadata(run: Any, player: Player, module: Any) -> dict[str, Any]:
+    import ray
+
+    agent = "attacker" if player.side == "attacker" else "targeter"
+    obs_space, act_space = observation_space(run.game, agent), action_space(run.game)
+    return {
+        "player": {"id": player.id, "name": player.name, "side": player.side, "reward_method": player.reward_method,
+                   "version": player.version, "env_steps": player.env_steps},
+        "agents": ["attacker"] if player.side == "attacker" else ["targeter", "defender"],
+        "observation": {
+            "mode": run.game.observation,
+            "size": int(obs_space.shape[0]),
+            "layout": "envs.observations (rich: agent-centred, lengths / position_scale; T and D end with a role "
+            "one-hot (targeter, defender))",
+        },
+        "action": {
+            "mode": run.game.action_mode,
+            "low": act_space.low.tolist(),
+            "high": act_space.high.tolist(),
+            "meaning": "relative: (yaw change / max_yaw_change, pitch change / max_pitch_change)"
+            if run.game.action_mode == "relative" else "absolute: desired (yaw, pitch) in radians",
+            "output": "Gaussian mean; the env clips it into [low, high]",
+        },
+        "game": run.game.model_dump(),
+        "versions": {"torch": torch.__version__, "ray": ray.__version__, "package": "target-defense-league 0.1.0"},
+        "hidden": list(module.model_config["hidden"]),
+    }
+
+
+def build(run_dir: Path, spec: str) -> tuple[ExportedPolicy, dict[str, Any]]:
+    import yaml
+
+    from league.config import RunConfig
+
+    if not (run_dir / DB_NAME).exists():
+        raise ExportError(f"no league database at {run_dir / DB_NAME}")
+    run = RunConfig.model_validate(yaml.safe_load((run_dir / "config.yaml").read_text()))
+    store = LeagueStore(run_dir)
+    try:
+        player = resolve_player(store, spec)
+    finally:
+        store.close()
+    module = load_policy(run_dir, player)
+    policy = ExportedPolicy(module.pi, module.actor_inputs).eval()
+    return policy, metadata(run, player, module)
+
+
+def export(policy: ExportedPolicy, info: dict[str, Any], fmt: str, out: Path) -> None:
+    example = torch.zeros(1, info["observation"]["size"])
+    out.parent.mkdir(parents=True, exist_ok=True)
+    partial = out.with_name(out.name + ".partial")
+    if fmt == "torchscript":
+        scripted = torch.jit.script(policy)
+        torch.jit.save(scripted, str(partial), _extra_files={METADATA_FILE: json.dumps(info)})
+    else:
+        import onnx
+
+        with warnings.catch_warnings():  # the TorchScript-based exporter is the one that needs no onnxscript
+            warnings.simplefilter("ignore", DeprecationWarning)
+            torch.onnx.export(
+                policy, (example,), str(partial), input_names=["observation"], output_names=["action"],
+                dynamic_axes={"observation": {0: "batch"}, "action": {0: "batch"}}, dynamo=False,
+            )
+        model = onnx.load(str(partial))
+        onnx.helper.set_model_props(model, {METADATA_FILE: json.dumps(info)})
+        onnx.save(model, str(partial))
+    partial.replace(out)  # never leave a half-written file under the requested name
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m league.export", description=__doc__.splitlines()[0])
+    parser.add_argument("--run-dir", type=Path, required=True)
+    parser.add_argument("--player", required=True, help="player id or name, latest-attacker or latest-team")
+    parser.add_argument("--format", choices=FORMATS, default="torchscript")
+    parser.add_argument("--out", type=Path, required=True)
+    args = parser.parse_args(argv)
+    try:
+        policy, info = build(args.run_dir, args.player)
+        export(policy, info, args.format, args.out)
+    except ExportError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except ImportError as err:
+        print(f"error: {err}; ONNX export needs the extra: pip install -e '.[onnx]'", file=sys.stderr)
+        return 2
+    print(f"exported {info['player']['name']} ({args.format}) to {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
