@@ -15,20 +15,22 @@
 The paper trains T and D as two agents; our shared team policy needs the role to tell
 them apart, so T and D get two more numbers.
 
-``rich`` (agent-centred, lengths divided by ``position_scale``):
+``rich`` (egocentric: vectors in the agent's *yaw frame* -- x ahead along its horizontal
+heading, y to its left, z up -- and lengths divided by ``position_scale``). The game is
+symmetric under rotations about the vertical axis through the terminal, so this view
+loses nothing, and a turn toward something is a simple function of where it appears:
 
 | index | meaning                                                   |
 | ----- | --------------------------------------------------------- |
-| 0-2   | own position                                              |
-| 3-5   | own heading (unit vector)                                 |
-| 6-8   | first other: relative position (other - own)              |
-| 9     | first other: distance                                     |
-| 10-12 | first other: heading (unit vector)                        |
-| 13-19 | second other: the same seven numbers                      |
-| 20-22 | terminal relative to own position                         |
-| 23    | distance to the terminal                                  |
-| 24    | fraction of the time limit left, 1 at the start           |
-| 25-26 | T and D only: role one-hot (targeter, defender)           |
+| 0-1   | own pitch: sin, cos                                       |
+| 2-4   | first other: relative position (other - own)              |
+| 5     | first other: distance                                     |
+| 6-8   | first other: heading (unit vector)                        |
+| 9-15  | second other: the same seven numbers                      |
+| 16-18 | terminal relative to own position                         |
+| 19    | distance to the terminal                                  |
+| 20    | fraction of the time limit left, 1 at the start           |
+| 21-22 | T and D only: role one-hot (targeter, defender)           |
 
 "Others" come opponent first: A sees (T, D), T sees (A, D), D sees (A, T).
 
@@ -48,7 +50,7 @@ from envs.geometry import norm
 from envs.kinematics import heading_vectors
 
 PAPER_SIZE = 15
-RICH_SIZE = 25
+RICH_SIZE = 21
 ROLE_SIZE = 2
 GLOBAL_STATE_SIZE = 22
 # Whom each agent sees first and second: opponent first.
@@ -89,13 +91,25 @@ def observe(config: GameConfig, positions: np.ndarray, headings: np.ndarray, tim
     out = []
     for agent in (ATTACKER, TARGETER, DEFENDER):
         own = scaled[:, agent]
-        parts = [own, vectors[:, agent]]
+        to_frame = yaw_frame(headings[:, agent, 0])
+        pitch = headings[:, agent, 1]
+        parts = [np.sin(pitch)[:, None], np.cos(pitch)[:, None]]
         for other in OTHERS[agent]:
             rel = scaled[:, other] - own
-            parts += [rel, norm(rel)[:, None], vectors[:, other]]
-        parts += [-own, norm(own)[:, None], time_left[:, None]]
+            parts += [to_frame(rel), norm(rel)[:, None], to_frame(vectors[:, other])]
+        parts += [to_frame(-own), norm(own)[:, None], time_left[:, None]]
         out.append(_with_role(np.concatenate(parts, axis=1), agent).astype(np.float32))
     return out
+
+
+def yaw_frame(yaw: np.ndarray):
+    """A function taking world vectors ``(N, 3)`` into the frame turned by ``yaw`` about z."""
+    cos, sin = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+
+    def rotate(v: np.ndarray) -> np.ndarray:
+        return np.concatenate((cos * v[:, :1] + sin * v[:, 1:2], -sin * v[:, :1] + cos * v[:, 1:2], v[:, 2:]), axis=1)
+
+    return rotate
 
 
 def global_state(config: GameConfig, positions: np.ndarray, headings: np.ndarray, time_left: np.ndarray) -> np.ndarray:

@@ -44,17 +44,29 @@ SCENARIO_SETS: dict[str, ScenarioSet] = {
 }
 
 
-def _random_directions(rng: np.random.Generator, n: int) -> np.ndarray:
-    v = rng.normal(size=(n, 3))
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
+def _directions(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Uniform directions on the sphere from two uniform numbers in [0, 1) each."""
+    z = 2.0 * u - 1.0
+    phi = 2.0 * np.pi * v
+    r = np.sqrt(1.0 - z * z)
+    return np.stack((r * np.cos(phi), r * np.sin(phi), z), axis=-1)
 
 
 def sample_positions(name: str, rng: np.random.Generator, n: int) -> np.ndarray:
-    """Starting positions ``(n, 3 agents, 3)`` in agent order (attacker, targeter, defender)."""
+    """Starting positions ``(n, 3 agents, 3)`` in agent order (attacker, targeter, defender).
+
+    Game ``i`` uses row ``i`` of one ``(n, 9)`` uniform draw, so the first ``k`` games of a
+    seeded batch are the same for every ``n >= k``.
+    """
     spec = SCENARIO_SETS[name]
-    targeter = _random_directions(rng, n) * rng.uniform(*spec.targeter_distance, size=(n, 1))
-    defender = targeter + _random_directions(rng, n) * rng.uniform(*spec.defender_offset, size=(n, 1))
-    attacker = targeter + _random_directions(rng, n) * rng.uniform(*spec.attacker_offset, size=(n, 1))
+    u = rng.random((n, 9))
+
+    def between(column: int, bounds: tuple[float, float]) -> np.ndarray:
+        return (bounds[0] + (bounds[1] - bounds[0]) * u[:, column])[:, None]
+
+    targeter = _directions(u[:, 3], u[:, 4]) * between(0, spec.targeter_distance)
+    defender = targeter + _directions(u[:, 5], u[:, 6]) * between(1, spec.defender_offset)
+    attacker = targeter + _directions(u[:, 7], u[:, 8]) * between(2, spec.attacker_offset)
     return np.stack((attacker, targeter, defender), axis=1)
 
 

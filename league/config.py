@@ -116,6 +116,11 @@ class LeagueSettings(Strict):
 class EvaluationSettings(Strict):
     episodes: int = Field(1000, ge=1)
     """Fixed seeded games per evaluated pair."""
+    workers: int = Field(2, ge=0)
+    """Ray actors that play the evaluation games (0: in the driver process)."""
+    cpus_per_worker: float = Field(0.5, gt=0)
+    every_iterations: int = Field(0, ge=0)
+    """Also evaluate the learners against their opponents every this many iterations (0: only at the end)."""
 
 
 class RunConfig(Strict):

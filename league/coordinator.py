@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import shutil
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +27,7 @@ import numpy as np
 from envs.agents import Outcome
 from league import rllib_bridge as bridge
 from league.config import RunConfig
+from league.evaluation import PairResult, evaluate_pairs
 from league.payoff import aggregate, elo_ratings, win_rate
 from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
@@ -175,6 +176,8 @@ class Coordinator:
         if self.phase_finished():
             snapshots = [self.snapshot(learner) for learner in self.learners(phase.side)]
             self.next_phase()
+        every = self.run.evaluation.every_iterations
+        evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
         due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
         checkpoint = self.checkpoint() if due else None
 
@@ -197,7 +200,11 @@ class Coordinator:
                 episodes=st.episodes,
                 steps_per_second=steps / seconds,
                 wall_seconds=seconds,
+                returns=json.dumps(bridge.module_returns(result, [p.name for p in self.store.players(kind="learner")])),
             )
+            if evaluation:
+                for r in evaluation:
+                    self.store.record_matches(st.iteration, "evaluation", r.outcome_rows())
             st.rng = self.rng.bit_generator.state
             if checkpoint is not None:
                 self.store.record_checkpoint(st.iteration, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(st)))
@@ -232,6 +239,20 @@ class Coordinator:
 
     def set_trainable(self, side: str) -> None:
         bridge.set_trainable(self.algo, [learner.name for learner in self.learners(side)])
+
+    def evaluate_learners(self, side: str) -> list[PairResult]:
+        """The side's learners, as they are now, against their opponents on the fixed games."""
+        pairs = []
+        for learner in self.learners(side):
+            path = self.run_dir / "players" / learner.name
+            if path.exists():
+                shutil.rmtree(path)
+            bridge.save_module(self.algo, learner.name, path)
+            current = replace(learner, checkpoint=str(path.relative_to(self.run_dir)))
+            for opponent in self.candidates(side):
+                pairs.append((current, opponent) if side == "attacker" else (opponent, current))
+        ev = self.run.evaluation
+        return evaluate_pairs(self.run.game, self.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker)
 
     # ------------------------------------------------------------ snapshots, checkpoints
     @staticmethod

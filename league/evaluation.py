@@ -4,6 +4,9 @@ Learned players are RLModules loaded from their saved directories and run with p
 torch forward passes (the Gaussian's mean, i.e. the deterministic action); scripted
 players are ``envs.scripted`` players. Every pair plays the same fixed seeded games
 (``envs.scenarios.evaluation_scenarios``).
+
+``evaluate_pairs`` runs in this process, or spreads the pairs over ``EvaluationWorker``
+Ray actors in slices of the same fixed games; both give the same numbers.
 """
 
 from __future__ import annotations
@@ -94,10 +97,63 @@ class PairResult:
         return [(self.attacker.id, self.team.id, label, n) for label, n in self.result.outcome_counts().items() if n]
 
 
-def evaluate_pair(game: GameConfig, attacker: Player, team: Player, episodes: int, run_dir: Path) -> PairResult:
+def evaluate_pair(
+    game: GameConfig, attacker: Player, team: Player, episodes: int, run_dir: Path, start: int = 0
+) -> PairResult:
+    """Games ``start .. start + episodes`` of the fixed evaluation set, ``attacker`` vs ``team``."""
     players = {**agents_of(attacker, run_dir), **agents_of(team, run_dir)}
-    result = play(game, players, evaluation_scenarios(game.scenario, episodes))
+    result = play(game, players, evaluation_scenarios(game.scenario, start + episodes)[start:])
     return PairResult(attacker, team, result)
+
+
+class EvaluationWorker:
+    """Ray actor body: plays slices of the fixed evaluation games for given pairs."""
+
+    def __init__(self, run_dir: str, game: dict):
+        self.run_dir = Path(run_dir)
+        self.game = GameConfig(**game)
+
+    def play(self, attacker: Player, team: Player, start: int, episodes: int) -> MatchResult:
+        return evaluate_pair(self.game, attacker, team, episodes, self.run_dir, start).result
+
+    def node_id(self) -> str:
+        import ray
+
+        return ray.get_runtime_context().get_node_id()
+
+
+def merge(results: list[MatchResult]) -> MatchResult:
+    return MatchResult(
+        np.concatenate([r.outcome for r in results]),
+        np.concatenate([r.steps for r in results]),
+        np.concatenate([r.returns for r in results]),
+    )
+
+
+def evaluate_pairs(
+    game: GameConfig,
+    run_dir: Path,
+    pairs: list[tuple[Player, Player]],
+    episodes: int,
+    workers: int = 0,
+    cpus_per_worker: float = 0.5,
+) -> list[PairResult]:
+    """Every pair on the first ``episodes`` fixed games; on ``workers`` Ray actors if > 0."""
+    if workers <= 0:
+        return [evaluate_pair(game, a, t, episodes, run_dir) for a, t in pairs]
+    import ray
+
+    actor_class = ray.remote(num_cpus=cpus_per_worker)(EvaluationWorker)
+    actors = [actor_class.remote(str(run_dir), game.model_dump()) for _ in range(workers)]
+    bounds = np.linspace(0, episodes, workers + 1).astype(int)
+    futures = [
+        [actors[k].play.remote(a, t, int(bounds[k]), int(bounds[k + 1] - bounds[k])) for k in range(workers) if bounds[k + 1] > bounds[k]]
+        for a, t in pairs
+    ]
+    results = [PairResult(a, t, merge(ray.get(f))) for (a, t), f in zip(pairs, futures)]
+    for actor in actors:
+        ray.kill(actor)
+    return results
 
 
 def format_table(results: list[PairResult]) -> str:

@@ -30,7 +30,7 @@ from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.connectors.connector_v2 import ConnectorV2
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
-from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED_LIFETIME
+from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, EPISODE_MODULE_RETURN_MEAN, NUM_ENV_STEPS_SAMPLED_LIFETIME
 
 MATCHES_KEY = "league_matches"
 SEPARATOR = "|"
@@ -157,6 +157,12 @@ def match_counts(result: dict[str, Any]) -> list[tuple[tuple[str, str, str], str
             if count == count and count > 0:  # keys of modules that did not play this time are NaN
                 rows.append((tuple(modules.split(SEPARATOR)), outcome, int(count)))
     return rows
+
+
+def module_returns(result: dict[str, Any], modules: list[str]) -> dict[str, float]:
+    """Mean episode return of each of ``modules`` that finished episodes this iteration."""
+    means = result.get(ENV_RUNNER_RESULTS, {}).get(EPISODE_MODULE_RETURN_MEAN, {})
+    return {m: float(means[m]) for m in modules if m in means and means[m] == means[m]}
 
 
 def sampled_env_steps(result: dict[str, Any]) -> int:

@@ -23,7 +23,8 @@ import yaml
 
 from league.config import ConfigError, RunConfig, load_config
 from league.coordinator import Coordinator, PhaseState, RunState, phase_count, phase_side
-from league.evaluation import evaluate_pair, format_table
+from league.evaluate import method_table
+from league.evaluation import evaluate_pairs, format_table
 from league.progress import ProgressReporter
 from league.store import DB_NAME, LeagueStore
 
@@ -133,10 +134,9 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
     frozen = [p for p in store.players() if p.kind != "learner"]
     attackers = [p for p in frozen if p.side == "attacker"]
     teams = [p for p in frozen if p.side == "team"]
-    results = []
-    for attacker in attackers:
-        for team in teams:
-            results.append(evaluate_pair(run.game, attacker, team, run.evaluation.episodes, coordinator.run_dir))
+    pairs = [(attacker, team) for attacker in attackers for team in teams]
+    ev = run.evaluation
+    results = evaluate_pairs(run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker)
     iteration = coordinator.state.iteration
     with store.transaction():
         store.db.execute("DELETE FROM matches WHERE source = 'evaluation' AND iteration = ?", (iteration,))
@@ -148,6 +148,7 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
         f"# Evaluation of {run.name} after iteration {iteration}\n\n"
         f"{run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair; "
         "attacker win rate with its 95% Wilson interval.\n\n" + format_table(results)
+        + "\n## Per attacker reward method\n\n" + method_table(results)
     )
     for r in results:
         progress.scalar(f"eval/{r.attacker.name}_vs_{r.team.name}", r.attacker_wins / r.games, iteration)

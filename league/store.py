@@ -56,7 +56,8 @@ CREATE TABLE IF NOT EXISTS iterations (
     env_steps INTEGER NOT NULL,      -- total so far
     episodes INTEGER NOT NULL,       -- total so far
     steps_per_second REAL NOT NULL,
-    wall_seconds REAL NOT NULL
+    wall_seconds REAL NOT NULL,
+    returns TEXT NOT NULL DEFAULT '{}'  -- mean episode return per learner module (JSON)
 );
 CREATE TABLE IF NOT EXISTS checkpoints (
     iteration INTEGER PRIMARY KEY,

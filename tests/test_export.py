@@ -17,27 +17,12 @@ from envs.scenarios import evaluation_scenarios
 from league.evaluation import LearnedAgent, load_module
 from league.export import main as export_main
 
-TINY = """
-name: tiny-export
-seed: 3
-ppo: {train_batch_size: 300, minibatch_size: 100, num_epochs: 2, hidden: [32, 32]}
-resources: {num_cpus: 2, num_env_runners: 0, num_envs_per_env_runner: 4}
-league: {mode: selfplay, selfplay_phases: 2, min_phase_episodes: 100000, phase_env_steps: 600}
-evaluation: {episodes: 10}
-"""
 REPO = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module")
-def run_dir(tmp_path_factory):
-    base = tmp_path_factory.mktemp("export")
-    (base / "tiny.yaml").write_text(TINY)
-    run = base / "run"
-    subprocess.run(
-        [sys.executable, "-m", "league.run", "--config", str(base / "tiny.yaml"), "--run-dir", str(run)],
-        check=True, capture_output=True, text=True,
-    )
-    return run
+def run_dir(tiny_run):
+    return tiny_run
 
 
 def observations(module, agent: str, n: int = 1000) -> np.ndarray:

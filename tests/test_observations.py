@@ -24,25 +24,37 @@ def test_paper_layout_and_role():
     np.testing.assert_array_equal(obs["defender"], expected + [0, 1])
 
 
-def test_rich_layout_is_agent_centred():
+def test_rich_layout_is_egocentric():
     game, obs = observations()
     scale = game.config.position_scale
     t = obs["targeter"]
-    assert t.shape == (27,) and obs["attacker"].shape == (25,)
-    np.testing.assert_allclose(t[0:3], START[0, 1] / scale)
-    np.testing.assert_allclose(t[3:6], [1, 0, 0])  # heading yaw = pitch = 0
-    np.testing.assert_allclose(t[6:9], (START[0, 0] - START[0, 1]) / scale, rtol=1e-6)  # A first
-    assert t[9] == pytest.approx(np.linalg.norm(START[0, 0] - START[0, 1]) / scale)
-    np.testing.assert_allclose(t[13:16], (START[0, 2] - START[0, 1]) / scale, rtol=1e-6)  # then D
-    np.testing.assert_allclose(t[20:23], -START[0, 1] / scale)
-    assert t[23] == pytest.approx(2.0 / scale)
-    assert t[24] == 1.0  # all of the time limit left
-    np.testing.assert_array_equal(t[25:], [1, 0])
-    np.testing.assert_array_equal(obs["defender"][25:], [0, 1])
+    assert t.shape == (23,) and obs["attacker"].shape == (21,)
+    np.testing.assert_allclose(t[0:2], [0, 1])  # pitch 0
+    # Yaw 0: the yaw frame is the world frame.
+    np.testing.assert_allclose(t[2:5], (START[0, 0] - START[0, 1]) / scale, rtol=1e-6)  # A first
+    assert t[5] == pytest.approx(np.linalg.norm(START[0, 0] - START[0, 1]) / scale)
+    np.testing.assert_allclose(t[6:9], [1, 0, 0])  # A's heading
+    np.testing.assert_allclose(t[9:12], (START[0, 2] - START[0, 1]) / scale, rtol=1e-6)  # then D
+    np.testing.assert_allclose(t[16:19], -START[0, 1] / scale)
+    assert t[19] == pytest.approx(2.0 / scale)
+    assert t[20] == 1.0  # all of the time limit left
+    np.testing.assert_array_equal(t[21:], [1, 0])
+    np.testing.assert_array_equal(obs["defender"][21:], [0, 1])
+
+
+def test_rich_view_turns_with_the_agent():
+    # Facing +y (yaw pi/2), a target at +y world lies straight ahead (+x of the yaw frame).
+    game = BatchedGame(GameConfig(), 1)
+    game.reset(positions=np.array([[[0.0, 0.0, 0.0], [0.0, 2.0, 0.0], [4.0, 0.0, 0.0]]]))
+    game.headings[0, 0] = [np.pi / 2, 0.3]
+    attacker = game.observations()[0][0]
+    np.testing.assert_allclose(attacker[0:2], [np.sin(0.3), np.cos(0.3)], rtol=1e-6)
+    np.testing.assert_allclose(attacker[2:5], [0.5, 0.0, 0.0], atol=1e-7)  # T ahead
+    np.testing.assert_allclose(attacker[9:12], [0.0, -1.0, 0.0], atol=1e-7)  # D on the right
 
 
 def test_time_left_counts_down_and_global_state_size():
     game, _ = observations()
     game.step(np.zeros((1, 3, 2)))
-    assert game.observations()[0][0, 24] == pytest.approx(1 - 1 / game.time_limit[0])
+    assert game.observations()[0][0, 20] == pytest.approx(1 - 1 / game.time_limit[0])
     assert game.global_state().shape == (1, 22)

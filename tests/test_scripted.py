@@ -90,3 +90,8 @@ def test_scripted_players_act_the_same_from_the_global_state(agent):
     for name in PLAYERS[agent]:
         expected = ScriptedPlayer(agent, name).act(game)
         np.testing.assert_allclose(act_from_state(config, agent, name, game.global_state()), expected, atol=1e-4)
+
+
+def test_evaluation_games_are_prefix_stable():
+    np.testing.assert_array_equal(evaluation_scenarios("default", 1000)[:37], evaluation_scenarios("default", 37))
+    np.testing.assert_array_equal(evaluation_scenarios("default", 500)[200:300], evaluation_scenarios("default", 300)[200:])

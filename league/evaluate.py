@@ -1,0 +1,114 @@
+"""Evaluate a league: ``python -m league.evaluate --run-dir DIR [--episodes N] [--players ...]``.
+
+Plays every chosen attacker against every chosen team on the fixed evaluation games
+(frozen players only: snapshots and scripted players), prints win rates with 95% Wilson
+intervals and outcome counts, then the table per attacker reward method. Results are
+added to the league database as evaluation matches of the run's last iteration.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import yaml
+
+from league.config import RunConfig
+from league.evaluation import PairResult, evaluate_pairs, format_table, wilson_interval
+from league.players import Player
+from league.store import DB_NAME, LeagueStore
+
+
+def latest_by_method(players: list[Player]) -> dict[int, Player]:
+    """The newest attacker snapshot of each reward method."""
+    latest: dict[int, Player] = {}
+    for p in players:
+        if p.side == "attacker" and p.kind == "snapshot":
+            latest[p.reward_method] = p
+    return latest
+
+
+def method_table(results: list[PairResult]) -> str:
+    """Per attacker reward method (its newest snapshot): win rate against each kind of team."""
+    attackers = latest_by_method([r.attacker for r in results])
+    teams = sorted({r.team.id: r.team for r in results}.values(), key=lambda p: p.id)
+    scripted = [t for t in teams if t.kind == "scripted"]
+    trained = [t for t in teams if t.kind == "snapshot"][-1:]
+    columns = [(t.name, [t]) for t in scripted + trained] + [("league pool", teams)]
+    lines = [
+        "| reward method | attacker | " + " | ".join(name for name, _ in columns) + " |",
+        "| --- | --- | " + " | ".join("---" for _ in columns) + " |",
+    ]
+    for method, attacker in sorted(attackers.items()):
+        cells = []
+        for _, group in columns:
+            ids = {t.id for t in group}
+            chosen = [r for r in results if r.attacker.id == attacker.id and r.team.id in ids]
+            wins, games = sum(r.attacker_wins for r in chosen), sum(r.games for r in chosen)
+            low, high = wilson_interval(wins, games)
+            cells.append(f"{wins / games:.3f} [{low:.3f}, {high:.3f}]" if games else "")
+        lines.append(f"| {method} | {attacker.name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def choose(players: list[Player], names: list[str] | None) -> list[Player]:
+    frozen = [p for p in players if p.kind != "learner"]
+    if not names:
+        return frozen
+    by_name = {p.name: p for p in frozen}
+    unknown = [n for n in names if n not in by_name]
+    if unknown:
+        raise ValueError(f"unknown or unfrozen players {unknown}; frozen players: {sorted(by_name)}")
+    return [by_name[n] for n in names]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m league.evaluate", description=__doc__.splitlines()[0])
+    parser.add_argument("--run-dir", type=Path, required=True)
+    parser.add_argument("--episodes", type=int, help="fixed games per pair (default: the run's evaluation.episodes)")
+    parser.add_argument("--players", nargs="+", help="player names (default: every snapshot and scripted player)")
+    parser.add_argument("--workers", type=int, help="evaluation actors (default: the run's evaluation.workers)")
+    args = parser.parse_args(argv)
+    if not (args.run_dir / DB_NAME).exists():
+        print(f"error: no league database at {args.run_dir / DB_NAME}", file=sys.stderr)
+        return 2
+    run = RunConfig.model_validate(yaml.safe_load((args.run_dir / "config.yaml").read_text()))
+    store = LeagueStore(args.run_dir)
+    try:
+        players = choose(store.players(), args.players)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    episodes = args.episodes or run.evaluation.episodes
+    workers = run.evaluation.workers if args.workers is None else args.workers
+    pairs = [(a, t) for a in players if a.side == "attacker" for t in players if t.side == "team"]
+    if not pairs:
+        print("error: choose at least one attacker and one team", file=sys.stderr)
+        return 2
+    started_ray = False
+    if workers > 0:
+        import ray
+
+        if not ray.is_initialized():
+            ray.init(num_cpus=max(1, int(workers * run.evaluation.cpus_per_worker + 0.999)), include_dashboard=False)
+            started_ray = True
+    try:
+        results = evaluate_pairs(run.game, args.run_dir.resolve(), pairs, episodes, workers, run.evaluation.cpus_per_worker)
+    finally:
+        if started_ray:
+            import ray
+
+            ray.shutdown()
+    last = store.last_iteration()
+    with store.transaction():
+        for r in results:
+            store.record_matches(last["iteration"] if last else 0, "evaluation", r.outcome_rows())
+    print(f"{episodes} fixed games of scenario set `{run.game.scenario}` per pair\n")
+    print(format_table(results))
+    print(method_table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,29 @@
+"""Shared fixtures: one tiny finished league run for the tests that read a run directory."""
+
+import subprocess
+import sys
+
+import pytest
+
+TINY_RUN = """
+name: tiny
+seed: 3
+ppo: {train_batch_size: 300, minibatch_size: 100, num_epochs: 2, hidden: [32, 32]}
+resources: {num_cpus: 2, num_env_runners: 0, num_envs_per_env_runner: 4}
+league: {mode: selfplay, selfplay_phases: 2, min_phase_episodes: 100000, phase_env_steps: 600}
+evaluation: {episodes: 10, every_iterations: 2}
+"""
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tmp_path_factory):
+    """A finished two-phase self-play run (attacker-m2-v0/v1, team-v0/v1), made once per session."""
+    base = tmp_path_factory.mktemp("tiny_run")
+    (base / "tiny.yaml").write_text(TINY_RUN)
+    run = base / "run"
+    proc = subprocess.run(
+        [sys.executable, "-m", "league.run", "--config", str(base / "tiny.yaml"), "--run-dir", str(run)],
+        capture_output=True, text=True,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return run
