@@ -27,7 +27,7 @@ import numpy as np
 from envs.agents import Outcome
 from league import rllib_bridge as bridge
 from league.config import RunConfig
-from league.evaluation import PairResult, evaluate_pairs
+from league.evaluation import EvaluationPool, PairResult, evaluate_pairs
 from league.payoff import aggregate, elo_ratings, win_rate
 from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
@@ -83,6 +83,7 @@ class Coordinator:
         self.algo = algo
         self.state = state
         self.rng = np.random.default_rng()
+        self.evaluation_pool: EvaluationPool | None = None  # made at the first evaluation
         if state.rng:
             self.rng.bit_generator.state = state.rng
 
@@ -252,7 +253,9 @@ class Coordinator:
             for opponent in self.candidates(side):
                 pairs.append((current, opponent) if side == "attacker" else (opponent, current))
         ev = self.run.evaluation
-        return evaluate_pairs(self.run.game, self.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker)
+        if self.evaluation_pool is None and ev.workers > 0:
+            self.evaluation_pool = EvaluationPool(self.run.game, self.run_dir, ev.workers, ev.cpus_per_worker)
+        return evaluate_pairs(self.run.game, self.run_dir, pairs, ev.episodes, pool=self.evaluation_pool)
 
     # ------------------------------------------------------------ snapshots, checkpoints
     @staticmethod

@@ -63,7 +63,7 @@ def load_module(path: str | Path) -> torch.nn.Module:
     return module
 
 
-def agents_of(player: Player, run_dir: Path) -> dict[str, AgentPlayer]:
+def agents_of(player: Player, run_dir: Path, load=None) -> dict[str, AgentPlayer]:
     """The per-agent players of a league member (``attacker`` or ``targeter``/``defender``)."""
     if player.kind == "scripted":
         if player.side == "attacker":
@@ -74,7 +74,7 @@ def agents_of(player: Player, run_dir: Path) -> dict[str, AgentPlayer]:
         }
     if not player.checkpoint:
         raise ValueError(f"player {player.name} has no saved module to evaluate")
-    module = load_module(run_dir / player.checkpoint)
+    module = (load or load_module)(run_dir / player.checkpoint)
     agents = ("attacker",) if player.side == "attacker" else ("targeter", "defender")
     return {agent: LearnedAgent(module, agent) for agent in agents}
 
@@ -98,23 +98,30 @@ class PairResult:
 
 
 def evaluate_pair(
-    game: GameConfig, attacker: Player, team: Player, episodes: int, run_dir: Path, start: int = 0
+    game: GameConfig, attacker: Player, team: Player, episodes: int, run_dir: Path, start: int = 0, load=None
 ) -> PairResult:
     """Games ``start .. start + episodes`` of the fixed evaluation set, ``attacker`` vs ``team``."""
-    players = {**agents_of(attacker, run_dir), **agents_of(team, run_dir)}
+    players = {**agents_of(attacker, run_dir, load), **agents_of(team, run_dir, load)}
     result = play(game, players, evaluation_scenarios(game.scenario, start + episodes)[start:])
     return PairResult(attacker, team, result)
 
 
 class EvaluationWorker:
-    """Ray actor body: plays slices of the fixed evaluation games for given pairs."""
+    """Ray actor body: plays slices of the fixed evaluation games; keeps loaded modules."""
 
     def __init__(self, run_dir: str, game: dict):
         self.run_dir = Path(run_dir)
         self.game = GameConfig(**game)
+        self.modules: dict[tuple[str, float], torch.nn.Module] = {}
+
+    def load(self, path: Path) -> torch.nn.Module:
+        key = (str(path), (Path(path) / "module_state.pkl").stat().st_mtime)  # a learner saved anew reloads
+        if key not in self.modules:
+            self.modules[key] = load_module(path)
+        return self.modules[key]
 
     def play(self, attacker: Player, team: Player, start: int, episodes: int) -> MatchResult:
-        return evaluate_pair(self.game, attacker, team, episodes, self.run_dir, start).result
+        return evaluate_pair(self.game, attacker, team, episodes, self.run_dir, start, self.load).result
 
     def node_id(self) -> str:
         import ray
@@ -130,6 +137,32 @@ def merge(results: list[MatchResult]) -> MatchResult:
     )
 
 
+class EvaluationPool:
+    """``workers`` evaluation actors kept for many evaluations (start-up costs seconds)."""
+
+    def __init__(self, game: GameConfig, run_dir: Path, workers: int, cpus_per_worker: float = 0.5):
+        import ray
+
+        actor_class = ray.remote(num_cpus=cpus_per_worker)(EvaluationWorker)
+        self.actors = [actor_class.remote(str(run_dir), game.model_dump()) for _ in range(workers)]
+
+    def evaluate(self, pairs: list[tuple[Player, Player]], episodes: int) -> list[PairResult]:
+        import ray
+
+        bounds = np.linspace(0, episodes, len(self.actors) + 1).astype(int)
+        slices = [(int(lo), int(hi - lo)) for lo, hi in zip(bounds[:-1], bounds[1:]) if hi > lo]
+        futures = [
+            [actor.play.remote(a, t, start, n) for actor, (start, n) in zip(self.actors, slices)] for a, t in pairs
+        ]
+        return [PairResult(a, t, merge(ray.get(f))) for (a, t), f in zip(pairs, futures)]
+
+    def close(self) -> None:
+        import ray
+
+        for actor in self.actors:
+            ray.kill(actor)
+
+
 def evaluate_pairs(
     game: GameConfig,
     run_dir: Path,
@@ -137,23 +170,18 @@ def evaluate_pairs(
     episodes: int,
     workers: int = 0,
     cpus_per_worker: float = 0.5,
+    pool: EvaluationPool | None = None,
 ) -> list[PairResult]:
-    """Every pair on the first ``episodes`` fixed games; on ``workers`` Ray actors if > 0."""
+    """Every pair on the first ``episodes`` fixed games: on ``pool``, on ``workers`` new actors, or here."""
+    if pool is not None:
+        return pool.evaluate(pairs, episodes)
     if workers <= 0:
         return [evaluate_pair(game, a, t, episodes, run_dir) for a, t in pairs]
-    import ray
-
-    actor_class = ray.remote(num_cpus=cpus_per_worker)(EvaluationWorker)
-    actors = [actor_class.remote(str(run_dir), game.model_dump()) for _ in range(workers)]
-    bounds = np.linspace(0, episodes, workers + 1).astype(int)
-    futures = [
-        [actors[k].play.remote(a, t, int(bounds[k]), int(bounds[k + 1] - bounds[k])) for k in range(workers) if bounds[k + 1] > bounds[k]]
-        for a, t in pairs
-    ]
-    results = [PairResult(a, t, merge(ray.get(f))) for (a, t), f in zip(pairs, futures)]
-    for actor in actors:
-        ray.kill(actor)
-    return results
+    pool = EvaluationPool(game, run_dir, workers, cpus_per_worker)
+    try:
+        return pool.evaluate(pairs, episodes)
+    finally:
+        pool.close()
 
 
 def format_table(results: list[PairResult]) -> str:

@@ -136,7 +136,9 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
     teams = [p for p in frozen if p.side == "team"]
     pairs = [(attacker, team) for attacker in attackers for team in teams]
     ev = run.evaluation
-    results = evaluate_pairs(run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker)
+    results = evaluate_pairs(
+        run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker, coordinator.evaluation_pool
+    )
     iteration = coordinator.state.iteration
     with store.transaction():
         store.db.execute("DELETE FROM matches WHERE source = 'evaluation' AND iteration = ?", (iteration,))
@@ -185,6 +187,8 @@ def main(argv: list[str] | None = None) -> int:
         coordinator.train(progress)
         if coordinator.store.get_meta("evaluated_iteration") != coordinator.state.iteration:
             evaluate_league(coordinator, progress)
+        if coordinator.evaluation_pool is not None:
+            coordinator.evaluation_pool.close()
         progress.message(f"done in {time.perf_counter() - started:.0f} s: {run_dir}")
         coordinator.algo.stop()
         return 0
