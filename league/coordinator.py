@@ -173,12 +173,12 @@ class Coordinator:
         for learner in learners:  # several learners split the phase's episodes evenly (uniform draw)
             st.learner_env_steps[learner.name] = st.learner_env_steps.get(learner.name, 0) + steps // len(learners)
 
+        every = self.run.evaluation.every_iterations
+        evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
         snapshots = []
         if self.phase_finished():
             snapshots = [self.snapshot(learner) for learner in self.learners(phase.side)]
             self.next_phase()
-        every = self.run.evaluation.every_iterations
-        evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
         due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
         checkpoint = self.checkpoint() if due else None
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import os
 import shutil
 import sys
 import time
@@ -62,7 +61,6 @@ def prepare_new_run_dir(run: RunConfig, run_dir: Path | None) -> Path:
 def start_ray(run: RunConfig, address: str | None) -> None:
     import ray
 
-    os.environ.setdefault("RAY_DEDUP_LOGS", "0")
     if address:
         ray.init(address=address, logging_level=logging.ERROR, log_to_driver=False)
     else:
