@@ -77,7 +77,7 @@ def heat_map(payoff, attackers: list[Player], teams: list[Player], out: Path) ->
             wins, games = payoff.get((a.id, t.id), (0, 0))
             if games:
                 grid[i, j] = wins / games
-    fig, ax = plt.subplots(figsize=(1.2 + 0.9 * len(teams), 1.2 + 0.45 * len(attackers)))
+    fig, ax = plt.subplots(figsize=(3.0 + 1.1 * len(teams), 2.5 + 0.45 * len(attackers)))
     image = ax.imshow(grid, cmap="RdBu_r", vmin=0, vmax=1, aspect="auto")
     ax.set_xticks(range(len(teams)), [t.name for t in teams], rotation=45, ha="right", fontsize=7)
     ax.set_yticks(range(len(attackers)), [a.name for a in attackers], fontsize=7)

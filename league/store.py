@@ -85,6 +85,9 @@ class LeagueStore:
         self.db.execute("PRAGMA foreign_keys=ON")
         if create:
             self.db.executescript(SCHEMA)
+        columns = {row[1] for row in self.db.execute("PRAGMA table_info(iterations)")}
+        if columns and "returns" not in columns:  # a database from before returns were recorded
+            self.db.execute("ALTER TABLE iterations ADD COLUMN returns TEXT NOT NULL DEFAULT '{}'")
 
     def close(self) -> None:
         self.db.close()
