@@ -177,3 +177,12 @@ def test_rollback_forgets_later_iterations(tmp_path):
     assert store.iteration_count() == 1
     assert store.match_rows() == [(a.id, t.id, "captured", 2)]
     assert [p.kind for p in store.players()] == ["scripted", "learner"]
+
+
+def test_bootstrap_interval_over_seeds():
+    from league.reproduce import bootstrap_interval
+
+    assert bootstrap_interval([0.4, 0.4, 0.4]) == pytest.approx((0.4, 0.4))
+    low, high = bootstrap_interval([0.2, 0.5, 0.8])
+    assert 0.2 <= low < 0.5 < high <= 0.8
+    assert bootstrap_interval([0.2, 0.5, 0.8]) == (low, high)  # seeded: the same interval every time
