@@ -21,7 +21,7 @@ import torch
 from envs.rllib_env import TargetDefenseMultiAgentEnv
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import act_from_state
-from league.config import RunConfig
+from league.config import RunConfig, saved_run_config
 from league.evaluation import EvaluationPool, evaluate_pairs, load_module
 from league.store import LeagueStore
 
@@ -54,9 +54,8 @@ def main() -> None:
     parser.add_argument("--rllib-episodes", type=int, default=200, help="games for the slow path")
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
-    import yaml
 
-    run = RunConfig.model_validate(yaml.safe_load((args.run_dir / "config.yaml").read_text()))
+    run = saved_run_config(args.run_dir)
     store = LeagueStore(args.run_dir)
     players = {p.name: p for p in store.players()}
     attacker, team = players[args.player], players["scripted-avoid_attacker+pure_pursuit"]

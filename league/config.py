@@ -18,6 +18,7 @@ from envs.config import GameConfig
 from envs.scripted import PLAYERS
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
+RUN_CONFIG_FILE = "config.yaml"  # the validated config a run keeps in its directory
 Side = Literal["attacker", "team"]
 
 
@@ -189,3 +190,8 @@ def load_config(name: str, overrides: list[str] | None = None) -> RunConfig:
             f"{'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}" for e in err.errors()
         )
         raise ConfigError(f"{path}: {problems}") from err
+
+
+def saved_run_config(run_dir: Path) -> RunConfig:
+    """The config a run wrote into its directory when it started."""
+    return RunConfig.model_validate(yaml.safe_load((Path(run_dir) / RUN_CONFIG_FILE).read_text()))

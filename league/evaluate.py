@@ -12,9 +12,8 @@ import argparse
 import sys
 from pathlib import Path
 
-import yaml
 
-from league.config import RunConfig
+from league.config import saved_run_config
 from league.evaluation import PairResult, evaluate_pairs, format_table, wilson_interval
 from league.players import Player
 from league.store import DB_NAME, LeagueStore
@@ -73,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.run_dir / DB_NAME).exists():
         print(f"error: no league database at {args.run_dir / DB_NAME}", file=sys.stderr)
         return 2
-    run = RunConfig.model_validate(yaml.safe_load((args.run_dir / "config.yaml").read_text()))
+    run = saved_run_config(args.run_dir)
     store = LeagueStore(args.run_dir)
     try:
         players = choose(store.players(), args.players)

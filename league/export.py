@@ -110,13 +110,12 @@ def metadata(run: Any, player: Player, module: Any) -> dict[str, Any]:
 
 
 def build(run_dir: Path, spec: str) -> tuple[ExportedPolicy, dict[str, Any]]:
-    import yaml
 
-    from league.config import RunConfig
+    from league.config import saved_run_config
 
     if not (run_dir / DB_NAME).exists():
         raise ExportError(f"no league database at {run_dir / DB_NAME}")
-    run = RunConfig.model_validate(yaml.safe_load((run_dir / "config.yaml").read_text()))
+    run = saved_run_config(run_dir)
     store = LeagueStore(run_dir)
     try:
         player = resolve_player(store, spec)

@@ -20,13 +20,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-import yaml
 
 from envs.agents import Outcome
 from envs.match import play
 from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
-from league.config import RunConfig
+from league.config import RunConfig, saved_run_config
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
 from league.payoff import aggregate
 from league.players import Player
@@ -147,7 +146,7 @@ def trajectories(run: RunConfig, run_dir: Path, attacker: Player, team: Player, 
 
 
 def build_report(run_dir: Path) -> Path:
-    run = RunConfig.model_validate(yaml.safe_load((run_dir / "config.yaml").read_text()))
+    run = saved_run_config(run_dir)
     store = LeagueStore(run_dir)
     out = run_dir / "report"
     out.mkdir(exist_ok=True)

@@ -20,14 +20,13 @@ import numpy as np
 
 import yaml
 
-from league.config import ConfigError, RunConfig, load_config
+from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, load_config, saved_run_config
 from league.coordinator import Coordinator, PhaseState, RunState, phase_count, phase_side
 from league.evaluate import method_table
 from league.evaluation import evaluate_pairs, format_table
 from league.progress import ProgressReporter
 from league.store import DB_NAME, LeagueStore
 
-CONFIG_FILE = "config.yaml"
 EVALUATION_FILE = "evaluation.md"
 
 
@@ -71,7 +70,7 @@ def new_run(run: RunConfig, run_dir: Path) -> Coordinator:
     from league import rllib_bridge as bridge
 
     run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / CONFIG_FILE).write_text(yaml.safe_dump(run.model_dump(mode="json"), sort_keys=False))
+    (run_dir / RUN_CONFIG_FILE).write_text(yaml.safe_dump(run.model_dump(mode="json"), sort_keys=False))
     store = LeagueStore(run_dir, create=True)
     with store.transaction():
         for method in run.attacker_methods:
@@ -103,9 +102,9 @@ def new_run(run: RunConfig, run_dir: Path) -> Coordinator:
 
 
 def read_run_config(run_dir: Path) -> RunConfig:
-    if not (run_dir / DB_NAME).exists() or not (run_dir / CONFIG_FILE).exists():
-        raise RunDirError(f"{run_dir} is not a league run directory (no {DB_NAME} or {CONFIG_FILE})")
-    return RunConfig.model_validate(yaml.safe_load((run_dir / CONFIG_FILE).read_text()))
+    if not (run_dir / DB_NAME).exists() or not (run_dir / RUN_CONFIG_FILE).exists():
+        raise RunDirError(f"{run_dir} is not a league run directory (no {DB_NAME} or {RUN_CONFIG_FILE})")
+    return saved_run_config(run_dir)
 
 
 def resume_run(run_dir: Path) -> Coordinator:
