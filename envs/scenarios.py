@@ -22,6 +22,8 @@ import numpy as np
 
 # Seed of the fixed evaluation games; changing it changes every evaluation result.
 EVALUATION_SEED = 20_240_917
+# Uniform numbers behind one start: distances of T, D and A, then two per direction.
+UNIFORMS_PER_START = 9
 
 
 @dataclass(frozen=True)
@@ -55,11 +57,15 @@ def _directions(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 def sample_positions(name: str, rng: np.random.Generator, n: int) -> np.ndarray:
     """Starting positions ``(n, 3 agents, 3)`` in agent order (attacker, targeter, defender).
 
-    Game ``i`` uses row ``i`` of one ``(n, 9)`` uniform draw, so the first ``k`` games of a
-    seeded batch are the same for every ``n >= k``.
+    Game ``i`` uses row ``i`` of one ``(n, UNIFORMS_PER_START)`` uniform draw, so the first
+    ``k`` games of a seeded batch are the same for every ``n >= k``.
     """
+    return positions_from_uniform(name, rng.random((n, UNIFORMS_PER_START)))
+
+
+def positions_from_uniform(name: str, u: np.ndarray) -> np.ndarray:
+    """Starting positions ``(n, 3, 3)`` from uniform numbers ``u`` ``(n, UNIFORMS_PER_START)`` in ``[0, 1)``."""
     spec = SCENARIO_SETS[name]
-    u = rng.random((n, 9))
 
     def between(column: int, bounds: tuple[float, float]) -> np.ndarray:
         return (bounds[0] + (bounds[1] - bounds[0]) * u[:, column])[:, None]

@@ -8,7 +8,7 @@ without a seed continues the last one.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 from gymnasium import spaces
@@ -85,11 +85,31 @@ class SingleGame:
         result = self.core.step(np.stack(batch)[None])
         rewards = {agent: float(r) for agent, r in zip(AGENTS, result.rewards[0])}
         done = bool(result.done[0])
-        info: dict[str, Any] = {"step": int(self.core.steps[0]), "time_limit": int(self.core.time_limit[0])}
-        if done:
-            outcome = Outcome(int(result.outcome[0]))
-            info.update(outcome=outcome.label, attacker_won=outcome.attacker_wins)
-        infos = {agent: dict(info) for agent in AGENTS}
-        # A's reward under each method (1, 2, 3), for leagues mixing attacker reward methods.
-        infos["attacker"]["attacker_rewards"] = [float(r) for r in result.attacker_rewards[0]]
+        infos = step_infos(int(self.core.steps[0]), int(self.core.time_limit[0]), int(result.outcome[0]), result.attacker_rewards[0])
         return self.observations(), rewards, done, infos
+
+
+def step_infos(step: int, time_limit: int, outcome: int, attacker_rewards: Sequence[float]) -> dict[str, dict[str, Any]]:
+    """The per-agent info dicts of one step of one game (every adapter returns these)."""
+    infos = infos_of_steps([step], [time_limit], [outcome], [attacker_rewards])
+    return {agent: steps[0] for agent, steps in infos.items()}
+
+
+def infos_of_steps(
+    steps: Sequence[int],
+    time_limits: Sequence[int],
+    outcomes: Sequence[int],
+    attacker_rewards: Sequence[Sequence[float]],
+    agents: Sequence[str] = AGENTS,
+) -> dict[str, list[dict[str, Any]]]:
+    """Info dicts of ``agents`` over consecutive steps of one game, from per-step values."""
+    common = [{"step": int(s), "time_limit": int(t)} for s, t in zip(steps, time_limits)]
+    for info, outcome in zip(common, outcomes):
+        if outcome != Outcome.RUNNING:
+            ended = Outcome(int(outcome))
+            info.update(outcome=ended.label, attacker_won=ended.attacker_wins)
+    infos = {agent: [dict(info) for info in common] for agent in agents}
+    # A's reward under each method (1, 2, 3), for leagues mixing attacker reward methods.
+    for info, rewards in zip(infos.get("attacker", ()), attacker_rewards):
+        info["attacker_rewards"] = list(map(float, rewards))
+    return infos

@@ -54,6 +54,9 @@ class Resources(Strict):
     num_env_runners: int = Field(0, ge=0)
     num_envs_per_env_runner: int = Field(8, ge=1)
     num_cpus_per_env_runner: float = Field(1, gt=0)
+    sampler: Literal["batched", "standard"] = "batched"
+    """``batched``: every runner steps its games as arrays (``league.batched_env_runner``);
+    ``standard``: RLlib's ``MultiAgentEnvRunner``, one game at a time (for comparison and debugging)."""
 
 
 class ScriptedTeam(Strict):

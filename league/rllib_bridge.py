@@ -1,4 +1,7 @@
-"""The only place that touches RLlib: algorithm config, modules, mapping, results, checkpoints.
+"""Where the league meets RLlib: algorithm config, modules, mapping, results, checkpoints.
+
+(Besides this module, RLlib is imported by the fast sampler, ``league.batched_env_runner``,
+and the RLModules, ``league.modules``.)
 
 * ``MatchPlan`` is the agent-to-module mapping. It decides each episode's opponent
   once, from the episode id and a seed (no state kept between calls), by the PFSP
@@ -11,7 +14,7 @@
 from __future__ import annotations
 
 import random
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +23,7 @@ import torch
 
 from envs.agents import AGENTS
 from envs.rllib_env import TargetDefenseMultiAgentEnv
+from league.batched_env_runner import BatchedEnvRunner
 from league.config import RunConfig
 from league.modules import ActorCriticModule, ScriptedModule
 from league.players import Player
@@ -30,6 +34,7 @@ from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.connectors.connector_v2 import ConnectorV2
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, EPISODE_MODULE_RETURN_MEAN, NUM_ENV_STEPS_SAMPLED_LIFETIME
 
 MATCHES_KEY = "league_matches"
@@ -104,11 +109,15 @@ class MatchPlan:
     opponents: list[list[dict[str, str]]]
     probabilities: list[list[float]]
     seed: int
+    # The last episode's match: its three agents ask one after the other.
+    _last: tuple[str, dict[str, str]] = field(default=("", {}), repr=False, compare=False)
 
     def match(self, episode_id: str) -> dict[str, str]:
-        k = _draw(self.seed, episode_id, "learner", [1.0] * len(self.learners))
-        opponent = self.opponents[k][_draw(self.seed, episode_id, "opponent", self.probabilities[k])]
-        return {**self.learners[k], **opponent}
+        if self._last[0] != episode_id:
+            k = _draw(self.seed, episode_id, "learner", [1.0] * len(self.learners))
+            opponent = self.opponents[k][_draw(self.seed, episode_id, "opponent", self.probabilities[k])]
+            self._last = (episode_id, {**self.learners[k], **opponent})
+        return self._last[1]
 
     def __call__(self, agent_id: str, episode: Any = None, **kwargs: Any) -> str:
         return self.match(episode.id_)[agent_id]
@@ -133,8 +142,13 @@ class AttackerRewardByMethod(ConnectorV2):
             if not method or real_steps <= 0:
                 continue
             infos = attacker.get_infos(slice(1, real_steps + 1))
-            rewards = np.array([info["attacker_rewards"][method - 1] for info in infos], dtype=np.float32)
-            attacker.set_rewards(new_data=rewards, at_indices=slice(0, real_steps))
+            rewards = [info["attacker_rewards"][method - 1] for info in infos]
+            buffer = attacker.rewards
+            if buffer.finalized:
+                # Written in place: `set_rewards` checks every value against a space (~0.1 ms per episode).
+                buffer.data[buffer.lookback : buffer.lookback + real_steps] = rewards
+            else:
+                attacker.set_rewards(new_data=np.array(rewards, dtype=np.float32), at_indices=slice(0, real_steps))
         return batch
 
 
@@ -142,8 +156,8 @@ class MatchRecorder(RLlibCallback):
     """Counts finished episodes by (attacker module, targeter module, defender module, outcome)."""
 
     def on_episode_end(self, *, episode, metrics_logger=None, **kwargs) -> None:
-        infos = episode.get_infos(-1)
-        outcome = infos["attacker"]["outcome"]
+        # Every agent's last info names the outcome (the batched sampler keeps only the learners').
+        outcome = next(iter(episode.agent_episodes.values())).get_infos(-1)["outcome"]
         modules = SEPARATOR.join(episode.module_for(agent) for agent in AGENTS)
         metrics_logger.log_value((MATCHES_KEY, modules, outcome), 1, reduce="sum")
 
@@ -191,6 +205,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             num_envs_per_env_runner=res.num_envs_per_env_runner,
             num_cpus_per_env_runner=res.num_cpus_per_env_runner,
             rollout_fragment_length="auto",
+            env_runner_cls=BatchedEnvRunner if res.sampler == "batched" else MultiAgentEnvRunner,
         )
         .learners(num_learners=0)
         .multi_agent(
