@@ -48,12 +48,16 @@ class PPOSettings(Strict):
 
 
 class Resources(Strict):
-    """Where sampling runs; ``num_cpus`` is used only when this run starts Ray itself."""
+    """Where sampling runs; ``num_cpus`` is used only when this run starts Ray itself
+    (with ``--address`` the cluster's nodes bring their own)."""
 
     num_cpus: int = Field(2, ge=1)
     num_env_runners: int = Field(0, ge=0)
     num_envs_per_env_runner: int = Field(8, ge=1)
     num_cpus_per_env_runner: float = Field(1, gt=0)
+    custom_resources_per_env_runner: dict[str, float] = Field(default_factory=dict)
+    """Custom Ray resources each env runner needs, e.g. ``{sampler: 1}`` to place runners
+    on the nodes started with that resource (``ray start --resources``)."""
     sampler: Literal["batched", "standard"] = "batched"
     """``batched``: every runner steps its games as arrays (``league.batched_env_runner``);
     ``standard``: RLlib's ``MultiAgentEnvRunner``, one game at a time (for comparison and debugging)."""
@@ -123,6 +127,8 @@ class EvaluationSettings(Strict):
     workers: int = Field(2, ge=0)
     """Ray actors that play the evaluation games (0: in the driver process)."""
     cpus_per_worker: float = Field(0.5, gt=0)
+    custom_resources_per_worker: dict[str, float] = Field(default_factory=dict)
+    """Custom Ray resources each evaluation worker needs (workers are spread over the nodes)."""
     every_iterations: int = Field(0, ge=0)
     """Also evaluate the learners against their opponents every this many iterations (0: only at the end)."""
 

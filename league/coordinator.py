@@ -20,7 +20,7 @@ import shutil
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -84,6 +84,8 @@ class Coordinator:
         self.state = state
         self.rng = np.random.default_rng()
         self.evaluation_pool: EvaluationPool | None = None  # made at the first evaluation
+        self.log: Callable[[str], None] = print  # the progress reporter's once training starts
+        self.runner_health = bridge.env_runner_health(algo)
         if state.rng:
             self.rng.bit_generator.state = state.rng
 
@@ -154,6 +156,7 @@ class Coordinator:
         started = time.perf_counter()
         result = self.algo.train()
         seconds = time.perf_counter() - started
+        self.report_runner_health()
 
         st, phase = self.state, self.state.phase
         st.iteration += 1
@@ -212,6 +215,19 @@ class Coordinator:
         self.prune_checkpoints()
         progress.iteration(self, result, weights, steps / seconds, [self.store_name(c) for c in snapshots])
 
+    def report_runner_health(self) -> None:
+        """Say when remote env runners are lost (a node died) or come back."""
+        healthy, total, restarts = bridge.env_runner_health(self.algo)
+        before = self.runner_health
+        if healthy < before[0]:
+            self.log(
+                f"lost {before[0] - healthy} of {total} env runners in iteration {self.state.iteration + 1}: "
+                f"their samples of this iteration are dropped; sampling goes on with {healthy} runner(s)"
+            )
+        if restarts > before[2] or healthy > before[0]:
+            self.log(f"env runners back to {healthy} of {total} healthy ({restarts} restarts so far)")
+        self.runner_health = (healthy, total, restarts)
+
     def match_rows(self, result: dict[str, Any]) -> list[tuple[int, int, str, int]]:
         attackers, teams = self.module_players()
         rows = []
@@ -254,7 +270,9 @@ class Coordinator:
                 pairs.append((current, opponent) if side == "attacker" else (opponent, current))
         ev = self.run.evaluation
         if self.evaluation_pool is None and ev.workers > 0:
-            self.evaluation_pool = EvaluationPool(self.run.game, self.run_dir, ev.workers, ev.cpus_per_worker)
+            self.evaluation_pool = EvaluationPool(
+                self.run.game, self.run_dir, ev.workers, ev.cpus_per_worker, ev.custom_resources_per_worker, self.log
+            )
         return evaluate_pairs(self.run.game, self.run_dir, pairs, ev.episodes, pool=self.evaluation_pool)
 
     # ------------------------------------------------------------ snapshots, checkpoints
@@ -302,6 +320,7 @@ class Coordinator:
 
     # ------------------------------------------------------------ whole run
     def train(self, progress: ProgressReporter) -> None:
+        self.log = progress.message
         self.set_trainable(self.state.phase.side)
         while not self.state.training_done:
             self.train_iteration(progress)

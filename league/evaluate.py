@@ -93,7 +93,10 @@ def main(argv: list[str] | None = None) -> int:
             ray.init(num_cpus=max(1, int(workers * run.evaluation.cpus_per_worker + 0.999)), include_dashboard=False)
             started_ray = True
     try:
-        results = evaluate_pairs(run.game, args.run_dir.resolve(), pairs, episodes, workers, run.evaluation.cpus_per_worker)
+        ev = run.evaluation
+        results = evaluate_pairs(
+            run.game, args.run_dir.resolve(), pairs, episodes, workers, ev.cpus_per_worker, resources=ev.custom_resources_per_worker
+        )
     finally:
         if started_ray:
             import ray

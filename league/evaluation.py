@@ -6,7 +6,8 @@ players are ``envs.scripted`` players. Every pair plays the same fixed seeded ga
 (``envs.scenarios.evaluation_scenarios``).
 
 ``evaluate_pairs`` runs in this process, or spreads the pairs over ``EvaluationWorker``
-Ray actors in slices of the same fixed games; both give the same numbers.
+Ray actors (on any node of the cluster) in slices of the same fixed games; both give the
+same numbers.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 import torch
@@ -107,26 +109,21 @@ def evaluate_pair(
 
 
 class EvaluationWorker:
-    """Ray actor body: plays slices of the fixed evaluation games; keeps loaded modules."""
+    """Ray actor body: plays slices of the fixed evaluation games with the modules it is sent.
 
-    def __init__(self, run_dir: str, game: dict):
-        self.run_dir = Path(run_dir)
+    Learned modules arrive through Ray's object store, so a worker on any node needs no
+    access to the run directory.
+    """
+
+    def __init__(self, game: dict):
         self.game = GameConfig(**game)
-        self.modules: dict[tuple[str, float], torch.nn.Module] = {}
 
-    def load(self, path: Path) -> torch.nn.Module:
-        key = (str(path), (Path(path) / "module_state.pkl").stat().st_mtime)  # a learner saved anew reloads
-        if key not in self.modules:
-            self.modules[key] = load_module(path)
-        return self.modules[key]
-
-    def play(self, attacker: Player, team: Player, start: int, episodes: int) -> MatchResult:
-        return evaluate_pair(self.game, attacker, team, episodes, self.run_dir, start, self.load).result
-
-    def node_id(self) -> str:
-        import ray
-
-        return ray.get_runtime_context().get_node_id()
+    def play(
+        self, attacker: Player, team: Player, start: int, episodes: int,
+        attacker_module: torch.nn.Module | None = None, team_module: torch.nn.Module | None = None,
+    ) -> MatchResult:
+        sent = {str(Path(p.checkpoint)): m for p, m in ((attacker, attacker_module), (team, team_module)) if m is not None}
+        return evaluate_pair(self.game, attacker, team, episodes, Path(), start, lambda path: sent[str(path)]).result
 
 
 def merge(results: list[MatchResult]) -> MatchResult:
@@ -138,23 +135,63 @@ def merge(results: list[MatchResult]) -> MatchResult:
 
 
 class EvaluationPool:
-    """``workers`` evaluation actors kept for many evaluations (start-up costs seconds)."""
+    """``workers`` evaluation actors kept for many evaluations (start-up costs seconds).
 
-    def __init__(self, game: GameConfig, run_dir: Path, workers: int, cpus_per_worker: float = 0.5):
+    The actors are spread over the cluster's nodes (``resources``: custom Ray resources
+    each one needs). The driver loads the learned modules from the run directory and
+    sends them. A slice whose actor is lost (its node died) is replayed here, and said.
+    """
+
+    def __init__(
+        self, game: GameConfig, run_dir: Path, workers: int, cpus_per_worker: float = 0.5,
+        resources: dict[str, float] | None = None, log: Callable[[str], None] = print,
+    ):
         import ray
 
-        actor_class = ray.remote(num_cpus=cpus_per_worker)(EvaluationWorker)
-        self.actors = [actor_class.remote(str(run_dir), game.model_dump()) for _ in range(workers)]
+        self.game, self.run_dir, self.log = game, Path(run_dir), log
+        actor_class = ray.remote(num_cpus=cpus_per_worker, resources=resources or {}, scheduling_strategy="SPREAD")
+        self.actors = [actor_class(EvaluationWorker).remote(game.model_dump()) for _ in range(workers)]
+        self.sent: dict[tuple[str, float], Any] = {}  # (module path, mtime) -> object ref
+
+    def module_ref(self, player: Player) -> Any:
+        import ray
+
+        if player.kind == "scripted":
+            return None
+        path = self.run_dir / player.checkpoint
+        key = (str(path), (path / "module_state.pkl").stat().st_mtime)  # a learner saved anew is sent anew
+        if key not in self.sent:
+            self.sent[key] = ray.put(load_module(path))
+        return self.sent[key]
 
     def evaluate(self, pairs: list[tuple[Player, Player]], episodes: int) -> list[PairResult]:
         import ray
 
+        if not self.actors:
+            return [evaluate_pair(self.game, a, t, episodes, self.run_dir) for a, t in pairs]
         bounds = np.linspace(0, episodes, len(self.actors) + 1).astype(int)
         slices = [(int(lo), int(hi - lo)) for lo, hi in zip(bounds[:-1], bounds[1:]) if hi > lo]
         futures = [
-            [actor.play.remote(a, t, start, n) for actor, (start, n) in zip(self.actors, slices)] for a, t in pairs
+            [
+                (actor, start, n, actor.play.remote(a, t, start, n, self.module_ref(a), self.module_ref(t)))
+                for actor, (start, n) in zip(self.actors, slices)
+            ]
+            for a, t in pairs
         ]
-        return [PairResult(a, t, merge(ray.get(f))) for (a, t), f in zip(pairs, futures)]
+        results = []
+        for (a, t), pair_futures in zip(pairs, futures):
+            parts = []
+            for actor, start, n, future in pair_futures:
+                try:
+                    parts.append(ray.get(future))
+                except ray.exceptions.RayActorError as err:
+                    if actor in self.actors:
+                        self.actors.remove(actor)
+                        self.log(f"evaluation worker lost ({type(err).__name__}); {len(self.actors)} left")
+                    self.log(f"replaying evaluation games {start}..{start + n - 1} of {a.name} vs {t.name} in the driver")
+                    parts.append(evaluate_pair(self.game, a, t, n, self.run_dir, start).result)
+            results.append(PairResult(a, t, merge(parts)))
+        return results
 
     def close(self) -> None:
         import ray
@@ -171,13 +208,14 @@ def evaluate_pairs(
     workers: int = 0,
     cpus_per_worker: float = 0.5,
     pool: EvaluationPool | None = None,
+    resources: dict[str, float] | None = None,
 ) -> list[PairResult]:
     """Every pair on the first ``episodes`` fixed games: on ``pool``, on ``workers`` new actors, or here."""
     if pool is not None:
         return pool.evaluate(pairs, episodes)
     if workers <= 0:
         return [evaluate_pair(game, a, t, episodes, run_dir) for a, t in pairs]
-    pool = EvaluationPool(game, run_dir, workers, cpus_per_worker)
+    pool = EvaluationPool(game, run_dir, workers, cpus_per_worker, resources)
     try:
         return pool.evaluate(pairs, episodes)
     finally:

@@ -179,6 +179,12 @@ def module_returns(result: dict[str, Any], modules: list[str]) -> dict[str, floa
     return {m: float(means[m]) for m in modules if m in means and means[m] == means[m]}
 
 
+def env_runner_health(algo: Algorithm) -> tuple[int, int, int]:
+    """``(healthy, total, restarts)`` of the remote env runners (all 0 when sampling in the driver)."""
+    group = algo.env_runner_group
+    return group.num_healthy_remote_env_runners(), group.num_remote_env_runners(), group.num_remote_worker_restarts()
+
+
 def sampled_env_steps(result: dict[str, Any]) -> int:
     return int(result.get(ENV_RUNNER_RESULTS, {}).get(NUM_ENV_STEPS_SAMPLED_LIFETIME, 0))
 
@@ -204,6 +210,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             num_env_runners=res.num_env_runners,
             num_envs_per_env_runner=res.num_envs_per_env_runner,
             num_cpus_per_env_runner=res.num_cpus_per_env_runner,
+            custom_resources_per_env_runner=res.custom_resources_per_env_runner,
             rollout_fragment_length="auto",
             env_runner_cls=BatchedEnvRunner if res.sampler == "batched" else MultiAgentEnvRunner,
         )

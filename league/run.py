@@ -134,7 +134,8 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
     pairs = [(attacker, team) for attacker in attackers for team in teams]
     ev = run.evaluation
     results = evaluate_pairs(
-        run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker, coordinator.evaluation_pool
+        run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker, coordinator.evaluation_pool,
+        ev.custom_resources_per_worker,
     )
     iteration = coordinator.state.iteration
     with store.transaction():

@@ -1,4 +1,4 @@
-"""PettingZoo API checks, and the batched core, PettingZoo env and RLlib env in lockstep."""
+"""PettingZoo API checks, and the batched core, PettingZoo env, RLlib env and vector env in lockstep."""
 
 import numpy as np
 import pytest
@@ -10,6 +10,7 @@ from envs.core import BatchedGame
 from envs.pettingzoo_env import TargetDefenseEnv, parallel_env
 from envs.rllib_env import TargetDefenseMultiAgentEnv
 from envs.scenarios import evaluation_scenarios
+from envs.vector_env import TargetDefenseVectorEnv
 
 MODES = [("rich", "relative"), ("paper", "absolute"), ("paper", "relative"), ("rich", "absolute")]
 
@@ -71,6 +72,38 @@ def test_lockstep_batched_pettingzoo_rllib(attacker_reward, action_mode):
         done |= result.done
         steps += 1
     assert steps > 1
+
+
+def test_vector_env_is_a_vector_of_rllib_envs_game_for_game():
+    """Game i of the vector env seeded s plays as an RLlib env seeded s + i, resets included."""
+    env_config = {"attacker_reward": 3, "terminal_reward": 5.0, "with_global_state": True}
+    n, seed = 5, 11
+    vector = TargetDefenseVectorEnv(env_config, n)
+    observations = vector.reset(seed=seed)
+    singles = [TargetDefenseMultiAgentEnv(env_config) for _ in range(n)]
+    single_obs = [env.reset(seed=seed + i)[0] for i, env in enumerate(singles)]
+    rng = np.random.default_rng(0)
+    episodes = 0
+    for _ in range(300):
+        for i in range(n):
+            for agent in AGENTS:
+                np.testing.assert_array_equal(observations[agent][i], single_obs[i][agent])
+        actions = {agent: rng.uniform(-1, 1, size=(n, 2)) for agent in AGENTS}
+        step = vector.step(actions)
+        for i, env in enumerate(singles):
+            obs, rewards, terminateds, _, infos = env.step({agent: actions[agent][i] for agent in AGENTS})
+            assert step.infos(i) == infos
+            assert bool(step.done[i]) == terminateds["__all__"]
+            for agent in AGENTS:
+                assert step.rewards[agent][i] == rewards[agent]
+                np.testing.assert_array_equal(step.observations[agent][i], obs[agent])
+            single_obs[i] = env.reset()[0] if terminateds["__all__"] else obs
+        episodes += int(step.done.sum())
+        restarted = vector.reset_games(np.flatnonzero(step.done))
+        observations = {agent: step.observations[agent].copy() for agent in AGENTS}
+        for agent in AGENTS:
+            observations[agent][step.done] = restarted[agent]
+    assert episodes > 2 * n
 
 
 def test_rllib_env_can_append_the_global_state():
