@@ -93,7 +93,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self.games = TargetDefenseVectorEnv(dict(self.config.env_config), self.num_envs)
         env = self.env.envs[0].unwrapped
         self._spaces = (dict(env.observation_spaces), dict(env.action_spaces))
-        self._needs_reset = True
+        # As the standard runner: a new env, or a sample by episode count, starts every game
+        # anew from the seed; `force_reset` starts them anew where their generators are.
+        self._needs_seeded_reset = True
 
     # ------------------------------------------------------------------ sample
     def sample(
@@ -115,9 +117,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             if num_episodes is not None:
                 self._reset_all()
                 episodes = self._play(None, num_episodes, explore, random_actions)
-                self._needs_reset = True  # like the standard runner: counted episodes start clean
+                self._needs_seeded_reset = True
             else:
-                if force_reset or self._needs_reset:
+                if force_reset or self._needs_seeded_reset:
                     self._reset_all()
                 if num_timesteps is None:
                     num_timesteps = self.config.get_rollout_fragment_length(self.worker_index) * self.num_envs
@@ -133,9 +135,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
     # ------------------------------------------------------------------ games
     def _reset_all(self) -> None:
         n = self.num_envs
-        # Seeded on the first reset only, as the standard runner seeds its sub-envs.
-        first_reset = not hasattr(self, "_episode_ids")
-        self._observations = self.games.reset(seed=self._seed if first_reset else None)
+        self._observations = self.games.reset(seed=self._seed if self._needs_seeded_reset else None)
+        self._needs_seeded_reset = False
         self._episode_ids = [""] * n
         self._module_ids: list[str] = []  # modules of the games, indexed by `self._modules`
         self._modules = np.zeros((n, len(AGENTS)), dtype=np.int64)
@@ -147,7 +148,6 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self._finished: list[tuple] = []  # (length, agent returns, module returns, seconds) per episode
         for game in range(n):
             self._new_episode(game)
-        self._needs_reset = False
 
     def _new_episode(self, game: int) -> None:
         """A fresh episode id for ``game``, and its agents' modules from the mapping."""
@@ -227,7 +227,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 for agent, games in players:
                     part = slice(start, start + len(games))
                     actions[agent][games] = outputs[Columns.ACTIONS][part]
-                    rows.store_outputs(t, agent, games, module_id, {k: v[part] for k, v in outputs.items() if k != Columns.ACTIONS})
+                    extra = {key: value[part] for key, value in outputs.items() if key != Columns.ACTIONS}
+                    rows.store_outputs(t, agent, games, module_id, extra)
                     start += len(games)
         return actions
 
@@ -241,7 +242,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         observation_spaces, action_spaces = self._spaces
         agent_episodes = {}
         for agent in agents:
-            outputs = {key: rows.outputs[(agent, key)][start:end, game].copy() for key in rows.output_keys.get(modules[agent], ())}
+            keys = rows.output_keys.get(modules[agent], ())
+            outputs = {key: rows.outputs[(agent, key)][start:end, game].copy() for key in keys}
             outputs[WEIGHTS_SEQ_NO] = np.full(length, self._weights_seq_no)
             agent_episodes[agent] = SingleAgentEpisode(
                 id_=f"{episode_id}-{agent}",

@@ -2,15 +2,17 @@
 
 Both nodes declare one ``sampler`` and one ``evaluator`` resource, and the config asks
 one of each per env runner and evaluation worker: so each node gets one of each.
+
+Each scenario runs in a child process (this file run as a script): the cluster's nodes
+and Ray's state API client live and die there, not in pytest's process.
 """
 
+import json
 import sqlite3
 import subprocess
 import sys
 import time
-
-import pytest
-from ray.cluster_utils import Cluster
+from pathlib import Path
 
 CONFIG = """
 name: cluster-test
@@ -33,31 +35,61 @@ checkpoint_every: 1
 NODE = {"num_cpus": 2, "resources": {"sampler": 1, "evaluator": 1}}
 
 
-@pytest.fixture
-def cluster():
-    cluster = Cluster(initialize_head=True, head_node_args={**NODE, "include_dashboard": True})
-    worker = cluster.add_node(**NODE)
-    cluster.wait_for_nodes()
-    yield cluster, worker
-    cluster.shutdown()
-
-
-def start_run(cluster, tmp_path, phase_steps):
-    config = tmp_path / "cluster.yaml"
-    config.write_text(CONFIG.format(phase_steps=phase_steps))
-    run_dir = tmp_path / "run"
-    command = [sys.executable, "-m", "league.run", "--config", str(config), "--run-dir", str(run_dir)]
-    proc = subprocess.Popen(
-        [*command, "--address", cluster.address], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
-    )
-    return proc, run_dir
-
-
+# ---------------------------------------------------------------- in the child process
 def iterations(run_dir):
     if not (run_dir / "league.db").exists():
         return []
     with sqlite3.connect(run_dir / "league.db") as db:
         return [i for (i,) in db.execute("SELECT iteration FROM iterations ORDER BY iteration")]
+
+
+def scenario(name, tmp_path):
+    """Start the cluster, run the league on it (and lose the worker node in `lose_node`)."""
+    from ray.cluster_utils import Cluster
+    from ray.util.state import list_actors
+
+    cluster = Cluster(initialize_head=True, head_node_args={**NODE, "include_dashboard": True})
+    try:
+        worker = cluster.add_node(**NODE)
+        cluster.wait_for_nodes()
+        nodes = sorted(node.node_id for node in cluster.list_all_nodes())
+        config = tmp_path / "cluster.yaml"
+        config.write_text(CONFIG.format(phase_steps=2400 if name == "lose_node" else 800))
+        run_dir = tmp_path / "run"
+        command = [sys.executable, "-m", "league.run", "--config", str(config), "--run-dir", str(run_dir)]
+        proc = subprocess.Popen(
+            [*command, "--address", cluster.address], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        )
+        if name == "lose_node":
+            deadline = time.monotonic() + 300
+            while len(iterations(run_dir)) < 2 and proc.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.5)
+            cluster.remove_node(worker)  # its env runner and evaluation worker die with it
+        output, _ = proc.communicate(timeout=600)
+
+        def nodes_of(class_name):
+            actors = list_actors(address=cluster.address, filters=[("class_name", "=", class_name)], limit=1000, detail=True)
+            return sorted({actor.node_id for actor in actors})
+
+        return {
+            "returncode": proc.returncode,
+            "output": output,
+            "run_dir": str(run_dir),
+            "nodes": nodes,
+            "env_runner_nodes": nodes_of("BatchedEnvRunner"),
+            "evaluation_worker_nodes": nodes_of("EvaluationWorker"),
+        }
+    finally:
+        cluster.shutdown()
+
+
+# ---------------------------------------------------------------- in pytest's process
+def run_scenario(name, tmp_path):
+    proc = subprocess.run([sys.executable, __file__, name, str(tmp_path)], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert result["returncode"] == 0, result["output"][-3000:]
+    return result
 
 
 def assert_complete(run_dir, output):
@@ -67,40 +99,26 @@ def assert_complete(run_dir, output):
         checkpoints = [path for (path,) in db.execute("SELECT path FROM checkpoints")]
         evaluated = db.execute("SELECT COUNT(*) FROM matches WHERE source = 'evaluation'").fetchone()[0]
         snapshots = db.execute("SELECT COUNT(*) FROM players WHERE kind = 'snapshot' AND version > 0").fetchone()[0]
-    assert checkpoints and all((run_dir / path).is_dir() for path in checkpoints)
+    assert checkpoints and (run_dir / checkpoints[-1]).is_dir()  # the newest ones are kept on disk
     assert evaluated > 0 and snapshots == 2
     assert (run_dir / "evaluation.md").exists()
 
 
-def nodes_of(class_name, address):
-    from ray.util.state import list_actors
-
-    actors = list_actors(address=address, filters=[("class_name", "=", class_name)], limit=1000, detail=True)
-    return {actor.node_id for actor in actors}
-
-
-def test_env_runners_and_evaluation_workers_run_on_both_nodes(cluster, tmp_path):
-    cluster, _ = cluster
-    proc, run_dir = start_run(cluster, tmp_path, phase_steps=800)
-    output, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 0, output[-3000:]
-    assert_complete(run_dir, output)
-    dashboard = cluster.head_node.address_info["webui_url"]
-    nodes = {node.node_id for node in cluster.list_all_nodes()}
-    assert nodes_of("BatchedEnvRunner", dashboard) == nodes
-    assert nodes_of("EvaluationWorker", dashboard) == nodes
+def test_env_runners_and_evaluation_workers_run_on_both_nodes(tmp_path):
+    result = run_scenario("both_nodes", tmp_path)
+    assert_complete(Path(result["run_dir"]), result["output"])
+    assert len(result["nodes"]) == 2
+    assert result["env_runner_nodes"] == result["nodes"]
+    assert result["evaluation_worker_nodes"] == result["nodes"]
 
 
-def test_losing_a_worker_node_mid_run_does_not_stop_the_run(cluster, tmp_path):
-    cluster, worker = cluster
-    proc, run_dir = start_run(cluster, tmp_path, phase_steps=2400)
-    deadline = time.monotonic() + 300
-    while len(iterations(run_dir)) < 2:
-        assert proc.poll() is None and time.monotonic() < deadline, proc.stdout.read()[-3000:]
-        time.sleep(0.5)
-    cluster.remove_node(worker)  # its env runner and evaluation worker die with it
-    output, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 0, output[-3000:]
+def test_losing_a_worker_node_mid_run_does_not_stop_the_run(tmp_path):
+    result = run_scenario("lose_node", tmp_path)
+    output = result["output"]
     assert "lost 1 of 2 env runners" in output, output[-3000:]
     assert "evaluation worker lost" in output and "replaying evaluation games" in output, output[-3000:]
-    assert_complete(run_dir, output)
+    assert_complete(Path(result["run_dir"]), output)
+
+
+if __name__ == "__main__":
+    print(json.dumps(scenario(sys.argv[1], Path(sys.argv[2]))))
