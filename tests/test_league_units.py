@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from league.config import ConfigError, RunConfig, load_config
+from league.config import CONFIG_DIR, ConfigError, RunConfig, load_config
 from league.evaluation import wilson_interval
 from league.payoff import elo_ratings, win_rate
 from league.pfsp import pfsp_probabilities
@@ -31,6 +31,8 @@ def write(tmp_path, text):
         ("name: x\nleague: {scripted_attackers: [teleport]}\n", "teleport"),
         ("name: x\nleague: {mode: protocol}\n", "phases"),
         ("seed: 1\n", "name"),
+        ("name: x\nresources: {sampler: fast}\n", "resources.sampler"),
+        ("name: x\nevaluation: {custom_resources_per_worker: {evaluator: many}}\n", "custom_resources_per_worker"),
     ],
 )
 def test_invalid_config_names_the_key(tmp_path, text, key):
@@ -39,7 +41,9 @@ def test_invalid_config_names_the_key(tmp_path, text, key):
 
 
 def test_every_shipped_config_is_valid():
-    for name in ("smoke", "attacker_method1", "attacker_method2", "attacker_method3", "selfplay_league"):
+    names = {path.stem for path in CONFIG_DIR.glob("*.yaml")}
+    assert {"smoke", "attacker_method1", "attacker_method2", "attacker_method3", "selfplay_league", "cluster"} <= names
+    for name in names:
         assert load_config(name).name == name
 
 
