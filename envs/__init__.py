@@ -1,7 +1,8 @@
 """The 3D cooperative target defense game: batched core, scripted players and adapters.
 
 Nothing here knows about training. Import the adapters from their modules
-(``envs.pettingzoo_env``, ``envs.rllib_env``) so that RLlib is only loaded when needed.
+(``envs.pettingzoo_env``, ``envs.rllib_env``, ``envs.vector_env``) so that RLlib is only
+loaded when needed.
 """
 
 from envs.agents import AGENTS, Outcome

@@ -4,7 +4,7 @@
 and the RLModules, ``league.modules``.)
 
 * ``MatchPlan`` is the agent-to-module mapping. It decides each episode's opponent
-  once, from the episode id and a seed (no state kept between calls), by the PFSP
+  once, from the episode id and a seed (the same match whoever asks, whenever), by the PFSP
   probabilities the coordinator computed; it is a picklable object sent to every
   EnvRunner.
 * ``MatchRecorder`` logs, per finished episode, which modules played and the outcome;
