@@ -85,7 +85,8 @@ class SingleGame:
         result = self.core.step(np.stack(batch)[None])
         rewards = {agent: float(r) for agent, r in zip(AGENTS, result.rewards[0])}
         done = bool(result.done[0])
-        infos = step_infos(int(self.core.steps[0]), int(self.core.time_limit[0]), int(result.outcome[0]), result.attacker_rewards[0])
+        core = self.core
+        infos = step_infos(int(core.steps[0]), int(core.time_limit[0]), int(result.outcome[0]), result.attacker_rewards[0])
         return self.observations(), rewards, done, infos
 
 

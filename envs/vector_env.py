@@ -22,7 +22,7 @@ from envs.config import GameConfig
 from envs.core import BatchedGame
 from envs.observations import global_state, observe
 from envs.scenarios import UNIFORMS_PER_START, positions_from_uniform
-from envs.single import action_space, observation_space, step_infos
+from envs.single import step_infos
 
 
 @dataclass
@@ -54,10 +54,6 @@ class TargetDefenseVectorEnv:
         self.num_games = num_games
         self.core = BatchedGame(self.config, num_games)
         self.generators = [np.random.default_rng() for _ in range(num_games)]
-        self.action_spaces = {agent: action_space(self.config) for agent in AGENTS}
-        self.observation_sizes = {
-            agent: observation_space(self.config, agent).shape[0] for agent in AGENTS
-        }
 
     def reset(self, seed: int | None = None) -> dict[str, np.ndarray]:
         """Start every game; with ``seed``, game ``i``'s generator is seeded ``seed + i``."""

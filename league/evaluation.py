@@ -108,6 +108,11 @@ def evaluate_pair(
     return PairResult(attacker, team, result)
 
 
+def evaluate_here(game: GameConfig, run_dir: Path, pairs: list[tuple[Player, Player]], episodes: int) -> list[PairResult]:
+    """Every pair on the first ``episodes`` fixed games, in this process."""
+    return [evaluate_pair(game, a, t, episodes, run_dir) for a, t in pairs]
+
+
 class EvaluationWorker:
     """Ray actor body: plays slices of the fixed evaluation games with the modules it is sent.
 
@@ -168,7 +173,7 @@ class EvaluationPool:
         import ray
 
         if not self.actors:
-            return [evaluate_pair(self.game, a, t, episodes, self.run_dir) for a, t in pairs]
+            return evaluate_here(self.game, self.run_dir, pairs, episodes)
         bounds = np.linspace(0, episodes, len(self.actors) + 1).astype(int)
         slices = [(int(lo), int(hi - lo)) for lo, hi in zip(bounds[:-1], bounds[1:]) if hi > lo]
         futures = [
@@ -214,7 +219,7 @@ def evaluate_pairs(
     if pool is not None:
         return pool.evaluate(pairs, episodes)
     if workers <= 0:
-        return [evaluate_pair(game, a, t, episodes, run_dir) for a, t in pairs]
+        return evaluate_here(game, run_dir, pairs, episodes)
     pool = EvaluationPool(game, run_dir, workers, cpus_per_worker, resources)
     try:
         return pool.evaluate(pairs, episodes)
