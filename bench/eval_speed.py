@@ -66,7 +66,7 @@ def main() -> None:
     local = args.episodes / (time.perf_counter() - started)
     print(f"batched core, one process: {local:.0f} episodes/s", flush=True)
 
-    ray.init(num_cpus=args.workers, include_dashboard=False)
+    ray.init(address="local", num_cpus=args.workers, include_dashboard=False)
     pool = EvaluationPool(run.game, run_dir, args.workers, cpus_per_worker=1)
     pool.evaluate([(attacker, team)], 10)  # actors started, modules loaded
     started = time.perf_counter()

@@ -104,7 +104,7 @@ def main() -> int:
     for sampler in args.samplers:
         run = load_config(args.config, [*args.overrides, f"resources.sampler={sampler}"])
         steps = args.env_steps if sampler == "batched" else (args.standard_env_steps or args.env_steps)
-        ray.init(num_cpus=run.resources.num_cpus, include_dashboard=False, log_to_driver=False)
+        ray.init(address="local", num_cpus=run.resources.num_cpus, include_dashboard=False, log_to_driver=False)
         try:
             results[sampler] = r = train(run, steps, args.target, args.window)
         finally:

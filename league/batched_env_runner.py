@@ -34,15 +34,17 @@ from typing import Any
 import numpy as np
 import torch
 
-from envs.agents import AGENTS
+from envs.agents import AGENTS, Outcome
 from envs.single import infos_of_steps
 from envs.vector_env import TargetDefenseVectorEnv, VectorStep
+from league.train_batch import gae
 from ray.rllib.callbacks.utils import make_callback
 from ray.rllib.core.columns import Columns
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 from ray.rllib.env.single_agent_episode import SingleAgentEpisode
 from ray.rllib.env.utils.infinite_lookback_buffer import InfiniteLookbackBuffer
+from ray.rllib.evaluation.postprocessing import Postprocessing
 from ray.rllib.utils.metrics import (
     EPISODE_AGENT_RETURN_MEAN,
     EPISODE_AGENT_STEPS,
@@ -68,6 +70,8 @@ from ray.rllib.utils.metrics import (
 )
 
 RESET_INFOS: dict[str, dict] = {agent: {} for agent in AGENTS}  # what a reset returns as infos
+MATCHES_KEY = "league_matches"  # metrics key of the finished games by modules and outcome
+SEPARATOR = "|"
 EPISODE_ROWS = 64  # first guess of the rows an episode-count sample needs (it grows)
 
 
@@ -116,14 +120,15 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         with self.metrics.log_time(SAMPLE_TIMER):
             if num_episodes is not None:
                 self._reset_all()
-                episodes = self._play(None, num_episodes, explore, random_actions)
+                episodes, _, _ = self._play(None, num_episodes, explore, random_actions)
                 self._needs_seeded_reset = True
             else:
                 if force_reset or self._needs_seeded_reset:
                     self._reset_all()
                 if num_timesteps is None:
                     num_timesteps = self.config.get_rollout_fragment_length(self.worker_index) * self.num_envs
-                episodes = self._play(math.ceil(num_timesteps / self.num_envs), None, explore, random_actions)
+                episodes, rows, t = self._play(math.ceil(num_timesteps / self.num_envs), None, explore, random_actions)
+                episodes += self._ongoing_chunks(rows, t)
         make_callback(
             "on_sample_end",
             callbacks_objects=self._callbacks,
@@ -131,6 +136,24 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             kwargs=dict(env_runner=self, metrics_logger=self.metrics, samples=episodes),
         )
         return episodes
+
+    def sample_training_data(self, num_timesteps: int) -> dict[str, dict[str, np.ndarray]]:
+        """Play at least ``num_timesteps`` env steps, exploring; PPO's training data of every
+        trained module straight from the arrays (``league.train_batch``), no episodes.
+
+        Module id -> columns ``obs``, ``actions``, ``action_logp``, ``action_dist_inputs``,
+        ``advantages`` (not yet standardised: that is done over all runners' data) and
+        ``value_targets``. Games still running at the end are continued by the next call.
+        """
+        if self.games is None:
+            raise ValueError(f"{self} has no env: it is a local runner beside remote ones")
+        self.metrics.log_value(key=WEIGHTS_SEQ_NO, value=self._weights_seq_no, window=1)
+        with self.metrics.log_time(SAMPLE_TIMER):
+            if self._needs_seeded_reset:
+                self._reset_all()
+            _, rows, t = self._play(math.ceil(num_timesteps / self.num_envs), None, True, False, episodes=False)
+            self._env_t += t - rows.chunk_start  # the unfinished episodes go on in the next call
+            return self._training_data(rows, t)
 
     # ------------------------------------------------------------------ games
     def _reset_all(self) -> None:
@@ -168,45 +191,58 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self._first_infos[game] = RESET_INFOS
 
     def _play(
-        self, num_steps: int | None, num_episodes: int | None, explore: bool, random_actions: bool
-    ) -> list[MultiAgentEpisode]:
-        """Step all games ``num_steps`` times, or until ``num_episodes`` have ended."""
+        self, num_steps: int | None, num_episodes: int | None, explore: bool, random_actions: bool, episodes: bool = True
+    ) -> tuple[list[MultiAgentEpisode], "_Rows", int]:
+        """Step all games ``num_steps`` times, or until ``num_episodes`` have ended.
+
+        Returns the episodes that ended (as ``MultiAgentEpisode``s if ``episodes``, else
+        none: their metrics and match are logged all the same), the rows and the steps played.
+        """
         n = self.num_envs
         rows = _Rows(self._observations, num_steps if num_steps is not None else EPISODE_ROWS)
-        chunk_start = np.zeros(n, dtype=np.int64)  # row of each game's first observation
+        rows.chunk_start = np.zeros(n, dtype=np.int64)  # row of each game's first observation
         done_episodes: list[MultiAgentEpisode] = []
+        num_done = 0
         module_steps = np.zeros(len(self._module_ids), dtype=np.int64)
         t = 0
-        while (t < num_steps) if num_steps is not None else (len(done_episodes) < num_episodes):
+        while (t < num_steps) if num_steps is not None else (num_done < num_episodes):
             if t == rows.capacity:
                 rows.grow()
             actions = self._act(rows, t, explore, random_actions)
             result = self.games.step(actions)
-            rows.store(t, actions, result)
+            rows.store(t, actions, result, self._modules)
             self._returns += np.stack([result.rewards[agent] for agent in AGENTS], axis=1)
             module_steps = _add_counts(module_steps, self._modules)
             t += 1
             ended = np.flatnonzero(result.done)
             if len(ended):
+                num_done += len(ended)
                 for game in ended:
-                    done_episodes.append(self._chunk(rows, game, chunk_start[game], t, ended=True))
+                    start = rows.chunk_start[game]
+                    if episodes:
+                        done_episodes.append(self._chunk(rows, game, start, t, ended=True))
+                    else:
+                        self._game_ended(game, int(self._env_t[game]) + t - start, int(result.outcome[game]))
                 rows.restart(t, ended, self.games.reset_games(ended))
-                chunk_start[ended] = t
+                rows.chunk_start[ended] = t
                 for game in ended:
                     self._new_episode(game)
         self._observations = {agent: rows.observations[agent][t] for agent in AGENTS}
-        self._count_steps(n * t, len(done_episodes), module_steps)
+        self._count_steps(n * t, num_done, module_steps)
         self._log_finished_episodes()
-        if num_steps is None:
-            return done_episodes
+        return done_episodes, rows, t
+
+    def _ongoing_chunks(self, rows: "_Rows", t: int) -> list[MultiAgentEpisode]:
+        """The episodes still running after row ``t``, as chunks that the next call continues."""
         ongoing = []
-        for game in np.flatnonzero(chunk_start < t):
-            chunk = self._chunk(rows, game, chunk_start[game], t, ended=False)
+        for game in np.flatnonzero(rows.chunk_start < t):
+            start = rows.chunk_start[game]
+            chunk = self._chunk(rows, game, start, t, ended=False)
             self._earlier_chunks[chunk.id_].append(chunk)
-            self._env_t[game] += t - chunk_start[game]
+            self._env_t[game] += t - start
             self._first_infos[game] = {agent: infos[0] for agent, infos in rows.infos(game, t - 1, t).items()}
             ongoing.append(chunk)
-        return done_episodes + ongoing
+        return ongoing
 
     def _act(self, rows: "_Rows", t: int, explore: bool, random_actions: bool) -> dict[str, np.ndarray]:
         """Every agent's action in every game: one forward pass per module."""
@@ -314,6 +350,53 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             ),
         )
 
+    def _game_ended(self, game: int, length: int, outcome: int) -> None:
+        """A finished game's metrics and match, without an episode object (the fast path)."""
+        returns = dict(zip(AGENTS, self._returns[game].tolist()))
+        modules = [self._module_ids[index] for index in self._modules[game]]
+        module_returns: dict[str, float] = defaultdict(float)
+        for agent, module_id in zip(AGENTS, modules):
+            module_returns[module_id] += returns[agent]
+        self._finished.append((length, returns, dict(module_returns), time.perf_counter() - self._started[game]))
+        log_match(self.metrics, modules, Outcome(outcome).label)
+
+    def _training_data(self, rows: "_Rows", t: int) -> dict[str, dict[str, np.ndarray]]:
+        """Every trained module's PPO columns from rows ``0..t`` (see ``sample_training_data``)."""
+        config = self.config
+        ended = (rows.outcome[:t] != int(Outcome.RUNNING)).astype(np.float64)
+        data: dict[str, dict[str, list[np.ndarray]]] = {}
+        for index, module_id in enumerate(self._module_ids):
+            if not self._is_trained(module_id):
+                continue
+            module = self.module[module_id]
+            method = (module.model_config or {}).get("reward_method")
+            for i, agent in enumerate(AGENTS):
+                played = rows.modules[:t, :, i] == index  # (t, G)
+                if not played.any():
+                    continue
+                # The observation after the last row is bootstrapped by whoever played the last step.
+                observed = np.concatenate((played, played[-1:]))
+                obs = rows.observations[agent][: t + 1]
+                values = np.zeros(observed.shape)
+                with torch.no_grad():
+                    values[observed] = module.compute_values({Columns.OBS: torch.from_numpy(obs[observed])}).numpy()
+                if agent == "attacker" and method:
+                    rewards = rows.attacker_rewards[:t, :, method - 1]  # this module's reward method
+                else:
+                    rewards = rows.rewards[agent][:t]
+                advantages, targets = gae(rewards, values[:t], values[t], ended, config.gamma, config.lambda_)
+                columns = {
+                    Columns.OBS: obs[:t][played],
+                    Columns.ACTIONS: rows.actions[agent][:t][played],
+                    Columns.ACTION_LOGP: rows.outputs[(agent, Columns.ACTION_LOGP)][:t][played],
+                    Columns.ACTION_DIST_INPUTS: rows.outputs[(agent, Columns.ACTION_DIST_INPUTS)][:t][played],
+                    Postprocessing.ADVANTAGES: advantages[played].astype(np.float32),
+                    Postprocessing.VALUE_TARGETS: targets[played].astype(np.float32),
+                }
+                for key, value in columns.items():
+                    data.setdefault(module_id, {}).setdefault(key, []).append(value)
+        return {module_id: {k: np.concatenate(v) for k, v in columns.items()} for module_id, columns in data.items()}
+
     def _log_finished_episodes(self) -> None:
         """The standard runner's episode metrics, for the episodes a window can still hold."""
         window = max(1, math.ceil(self.config.metrics_num_episodes_for_smoothing / (self.config.num_env_runners or 1)))
@@ -352,6 +435,11 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 module_id = self._module_ids[index]
                 self.metrics.log_value((NUM_MODULE_STEPS_SAMPLED, module_id), steps, reduce="sum")
                 self.metrics.log_value((NUM_MODULE_STEPS_SAMPLED_LIFETIME, module_id), steps, reduce="lifetime_sum")
+
+
+def log_match(metrics: Any, modules: list[str], outcome: str) -> None:
+    """Count one finished game by its (attacker, targeter, defender) modules and outcome."""
+    metrics.log_value((MATCHES_KEY, SEPARATOR.join(modules), outcome), 1, reduce="sum")
 
 
 def _add_counts(counts: np.ndarray, modules: np.ndarray) -> np.ndarray:
@@ -399,6 +487,8 @@ class _Rows:
         self.output_keys: dict[str, tuple[str, ...]] = {}  # module id -> the outputs it returned
         self.steps, self.time_limit, self.outcome = (self._new((), np.int64) for _ in range(3))
         self.attacker_rewards = self._new((3,), np.float64)
+        self.modules = self._new((len(AGENTS),), np.int64)  # index of the module each agent played with
+        self.chunk_start = np.zeros(self.num_games, dtype=np.int64)  # row of each game's first observation
 
     def _new(self, shape: tuple[int, ...], dtype: Any) -> np.ndarray:
         return np.zeros((self.capacity, self.num_games, *shape), dtype=dtype)
@@ -415,9 +505,11 @@ class _Rows:
         self.outputs = {k: doubled(x) for k, x in self.outputs.items()}
         self.steps, self.time_limit, self.outcome = doubled(self.steps), doubled(self.time_limit), doubled(self.outcome)
         self.attacker_rewards = doubled(self.attacker_rewards)
+        self.modules = doubled(self.modules)
         self.capacity *= 2
 
-    def store(self, t: int, actions: dict[str, np.ndarray], result: VectorStep) -> None:
+    def store(self, t: int, actions: dict[str, np.ndarray], result: VectorStep, modules: np.ndarray) -> None:
+        self.modules[t] = modules
         for agent in AGENTS:
             self.actions[agent][t] = actions[agent]
             self.rewards[agent][t] = result.rewards[agent]

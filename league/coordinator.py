@@ -271,7 +271,8 @@ class Coordinator:
         ev = self.run.evaluation
         if self.evaluation_pool is None and ev.workers > 0:
             self.evaluation_pool = EvaluationPool(
-                self.run.game, self.run_dir, ev.workers, ev.cpus_per_worker, ev.custom_resources_per_worker, self.log
+                self.run.game, self.run_dir, ev.workers, ev.cpus_per_worker, ev.custom_resources_per_worker, self.log,
+                torch_threads=self.run.resources.torch_threads,
             )
         return evaluate_pairs(self.run.game, self.run_dir, pairs, ev.episodes, pool=self.evaluation_pool)
 

@@ -12,6 +12,7 @@ import argparse
 import sys
 from pathlib import Path
 
+import torch
 
 from league.config import saved_run_config
 from league.evaluation import PairResult, evaluate_pairs, format_table, wilson_interval
@@ -73,6 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: no league database at {args.run_dir / DB_NAME}", file=sys.stderr)
         return 2
     run = saved_run_config(args.run_dir)
+    torch.set_num_threads(run.resources.threads_for(1))  # games played here run torch in this process
     store = LeagueStore(args.run_dir)
     try:
         players = choose(store.players(), args.players)
@@ -95,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         ev = run.evaluation
         results = evaluate_pairs(
-            run.game, args.run_dir.resolve(), pairs, episodes, workers, ev.cpus_per_worker, resources=ev.custom_resources_per_worker
+            run.game, args.run_dir.resolve(), pairs, episodes, workers, ev.cpus_per_worker,
+            resources=ev.custom_resources_per_worker, torch_threads=run.resources.torch_threads,
         )
     finally:
         if started_ray:

@@ -120,8 +120,9 @@ class EvaluationWorker:
     access to the run directory.
     """
 
-    def __init__(self, game: dict):
+    def __init__(self, game: dict, torch_threads: int):
         self.game = GameConfig(**game)
+        torch.set_num_threads(torch_threads)
 
     def play(
         self, attacker: Player, team: Player, start: int, episodes: int,
@@ -149,13 +150,14 @@ class EvaluationPool:
 
     def __init__(
         self, game: GameConfig, run_dir: Path, workers: int, cpus_per_worker: float = 0.5,
-        resources: dict[str, float] | None = None, log: Callable[[str], None] = print,
+        resources: dict[str, float] | None = None, log: Callable[[str], None] = print, torch_threads: int | None = None,
     ):
         import ray
 
         self.game, self.run_dir, self.log = game, Path(run_dir), log
         actor_class = ray.remote(num_cpus=cpus_per_worker, resources=resources or {}, scheduling_strategy="SPREAD")
-        self.actors = [actor_class(EvaluationWorker).remote(game.model_dump()) for _ in range(workers)]
+        threads = torch_threads or max(1, int(cpus_per_worker))  # as `Resources.threads_for`
+        self.actors = [actor_class(EvaluationWorker).remote(game.model_dump(), threads) for _ in range(workers)]
         self.sent: dict[tuple[str, float], Any] = {}  # (module path, mtime) -> object ref
 
     def module_ref(self, player: Player) -> Any:
@@ -214,13 +216,14 @@ def evaluate_pairs(
     cpus_per_worker: float = 0.5,
     pool: EvaluationPool | None = None,
     resources: dict[str, float] | None = None,
+    torch_threads: int | None = None,
 ) -> list[PairResult]:
     """Every pair on the first ``episodes`` fixed games: on ``pool``, on ``workers`` new actors, or here."""
     if pool is not None:
         return pool.evaluate(pairs, episodes)
     if workers <= 0:
         return evaluate_here(game, run_dir, pairs, episodes)
-    pool = EvaluationPool(game, run_dir, workers, cpus_per_worker, resources)
+    pool = EvaluationPool(game, run_dir, workers, cpus_per_worker, resources, torch_threads=torch_threads)
     try:
         return pool.evaluate(pairs, episodes)
     finally:

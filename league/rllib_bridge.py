@@ -13,6 +13,8 @@ and the RLModules, ``league.modules``.)
 
 from __future__ import annotations
 
+import functools
+import math
 import random
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,22 +25,35 @@ import torch
 
 from envs.agents import AGENTS
 from envs.rllib_env import TargetDefenseMultiAgentEnv
-from league.batched_env_runner import BatchedEnvRunner
+from league.batched_env_runner import MATCHES_KEY, SEPARATOR, BatchedEnvRunner, log_match
 from league.config import RunConfig
 from league.modules import ActorCriticModule, ScriptedModule
 from league.players import Player
+from league.train_batch import standardized
 from ray.rllib.algorithms.algorithm import Algorithm
-from ray.rllib.algorithms.ppo import PPOConfig
+from ray.rllib.algorithms.ppo import PPO, PPOConfig
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.connectors.connector_v2 import ConnectorV2
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
-from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, EPISODE_MODULE_RETURN_MEAN, NUM_ENV_STEPS_SAMPLED_LIFETIME
+from ray.rllib.evaluation.postprocessing import Postprocessing
+from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
+from ray.rllib.utils.metrics import (
+    ALL_MODULES,
+    ENV_RUNNER_RESULTS,
+    ENV_RUNNER_SAMPLING_TIMER,
+    EPISODE_MODULE_RETURN_MEAN,
+    LEARNER_RESULTS,
+    LEARNER_UPDATE_TIMER,
+    NUM_ENV_STEPS_SAMPLED,
+    NUM_ENV_STEPS_SAMPLED_LIFETIME,
+    NUM_MODULE_STEPS_TRAINED_LIFETIME,
+    SYNCH_WORKER_WEIGHTS_TIMER,
+    TIMERS,
+)
 
-MATCHES_KEY = "league_matches"
-SEPARATOR = "|"
 
 
 def env_config(run: RunConfig) -> dict[str, Any]:
@@ -158,8 +173,7 @@ class MatchRecorder(RLlibCallback):
     def on_episode_end(self, *, episode, metrics_logger=None, **kwargs) -> None:
         # Every agent's last info names the outcome (the batched sampler keeps only the learners').
         outcome = next(iter(episode.agent_episodes.values())).get_infos(-1)["outcome"]
-        modules = SEPARATOR.join(episode.module_for(agent) for agent in AGENTS)
-        metrics_logger.log_value((MATCHES_KEY, modules, outcome), 1, reduce="sum")
+        log_match(metrics_logger, [episode.module_for(agent) for agent in AGENTS], outcome)
 
 
 def match_counts(result: dict[str, Any]) -> list[tuple[tuple[str, str, str], str, int]]:
@@ -189,6 +203,76 @@ def sampled_env_steps(result: dict[str, Any]) -> int:
     return int(result.get(ENV_RUNNER_RESULTS, {}).get(NUM_ENV_STEPS_SAMPLED_LIFETIME, 0))
 
 
+class LeaguePPO(PPO):
+    """PPO whose training step takes its data straight from the fast sampler's arrays.
+
+    The same steps as ``PPO.training_step`` (sample, update the learner, sync the weights),
+    with ``BatchedEnvRunner.sample_training_data`` in place of episodes and the learner
+    connector pipeline: the batch reaches the Learner with its advantages and value targets.
+    """
+
+    def training_step(self) -> None:
+        group, config = self.env_runner_group, self.config
+        with self.metrics.log_time((TIMERS, ENV_RUNNER_SAMPLING_TIMER)):
+            if group.num_remote_env_runners() == 0:
+                sampled = [(self.env_runner.sample_training_data(config.total_train_batch_size), self.env_runner.get_metrics())]
+            else:
+                steps = math.ceil(config.total_train_batch_size / max(1, group.num_healthy_remote_env_runners()))
+                sampled = group.foreach_env_runner(
+                    lambda runner: (runner.sample_training_data(steps), runner.get_metrics()),
+                    local_env_runner=False,
+                    timeout_seconds=config.sample_timeout_s,
+                )
+            if not sampled:
+                return
+            self.metrics.aggregate([metrics for _, metrics in sampled], key=ENV_RUNNER_RESULTS)
+        env_steps = sum(int(metrics.get(NUM_ENV_STEPS_SAMPLED, 0)) for _, metrics in sampled)
+        batch = training_batch([data for data, _ in sampled], env_steps)
+        if batch is None:  # no trained module played
+            return
+        with self.metrics.log_time((TIMERS, LEARNER_UPDATE_TIMER)):
+            learner_results = self.learner_group.update(
+                batch=batch,
+                timesteps={
+                    NUM_ENV_STEPS_SAMPLED_LIFETIME: self.metrics.peek((ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED_LIFETIME)),
+                    NUM_MODULE_STEPS_TRAINED_LIFETIME: self.metrics.peek(
+                        (LEARNER_RESULTS, ALL_MODULES, NUM_MODULE_STEPS_TRAINED_LIFETIME), default=0
+                    ),
+                },
+                num_epochs=config.num_epochs,
+                minibatch_size=config.minibatch_size,
+                shuffle_batch_per_epoch=config.shuffle_batch_per_epoch,
+            )
+            self.metrics.aggregate(learner_results, key=LEARNER_RESULTS)
+        with self.metrics.log_time((TIMERS, SYNCH_WORKER_WEIGHTS_TIMER)):
+            group.sync_weights(
+                from_worker_or_learner_group=self.learner_group,
+                policies=set(learner_results[0]) - {ALL_MODULES},
+                inference_only=True,
+            )
+
+
+def training_batch(parts: list[dict[str, dict[str, np.ndarray]]], env_steps: int) -> MultiAgentBatch | None:
+    """One ``MultiAgentBatch`` of the runners' data (``env_steps`` played), advantages standardised per module."""
+    modules = sorted({module_id for part in parts for module_id in part})
+    if not modules:
+        return None
+    batches = {}
+    for module_id in modules:
+        pieces = [part[module_id] for part in parts if module_id in part]
+        columns = {key: np.concatenate([piece[key] for piece in pieces]) for key in pieces[0]}
+        advantages = columns[Postprocessing.ADVANTAGES]
+        columns[Postprocessing.ADVANTAGES] = standardized(advantages).astype(np.float32)
+        batches[module_id] = SampleBatch(columns)
+    return MultiAgentBatch(batches, env_steps=env_steps)
+
+
+def _runner_threads(threads: int, env_runner: Any = None, **kwargs: Any) -> None:
+    """``on_environment_created`` callback: the torch threads of an env runner's process
+    (RLlib leaves torch's default, all cores)."""
+    torch.set_num_threads(threads)
+
+
 class LeaguePPOLearner(PPOTorchLearner):
     """PPO learner that gives no optimizer to parameter-free (scripted) modules."""
 
@@ -204,7 +288,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
         specs.update(player_specs(run, player))
     res, ppo = run.resources, run.ppo
     return (
-        PPOConfig()
+        PPOConfig(algo_class=LeaguePPO if res.sampler == "fast" else PPO)
         .environment(env=TargetDefenseMultiAgentEnv, env_config=env_config(run), normalize_actions=False, clip_actions=False)
         .env_runners(
             num_env_runners=res.num_env_runners,
@@ -212,7 +296,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             num_cpus_per_env_runner=res.num_cpus_per_env_runner,
             custom_resources_per_env_runner=res.custom_resources_per_env_runner,
             rollout_fragment_length="auto",
-            env_runner_cls=BatchedEnvRunner if res.sampler == "batched" else MultiAgentEnvRunner,
+            env_runner_cls=MultiAgentEnvRunner if res.sampler == "standard" else BatchedEnvRunner,
         )
         .learners(num_learners=0)
         .multi_agent(
@@ -237,7 +321,10 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             learner_connector=lambda observation_space, action_space: AttackerRewardByMethod(),
         )
         .fault_tolerance(restart_failed_env_runners=True)
-        .callbacks(MatchRecorder)
+        .callbacks(
+            MatchRecorder,
+            on_environment_created=functools.partial(_runner_threads, res.threads_for(res.num_cpus_per_env_runner)),
+        )
         .debugging(seed=run.seed, log_level="ERROR")
         .reporting(metrics_num_episodes_for_smoothing=100)
     )

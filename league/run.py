@@ -135,7 +135,7 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
     ev = run.evaluation
     results = evaluate_pairs(
         run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker, coordinator.evaluation_pool,
-        ev.custom_resources_per_worker,
+        ev.custom_resources_per_worker, run.resources.torch_threads,
     )
     iteration = coordinator.state.iteration
     with store.transaction():
@@ -170,7 +170,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
     import ray
+    import torch
 
+    torch.set_num_threads(run.resources.threads_for(1))  # the driver: learner, local env runner, evaluation
     start_ray(run, args.address)
     progress = None
     try:

@@ -54,7 +54,7 @@ def build(sampler, team):
 
 @pytest.fixture(scope="module")
 def algos():
-    ray.init(num_cpus=2, include_dashboard=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
     built = {}
     for team in (TEAM, SCRIPTED_TEAM):
         standard, batched = build("standard", team), build("batched", team)

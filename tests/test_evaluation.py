@@ -18,7 +18,7 @@ TEAM = Player(id=2, side="team", kind="scripted", version=0, scripted_targeter="
 
 @pytest.fixture(scope="module")
 def ray_instance():
-    ray.init(num_cpus=2, include_dashboard=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
     yield
     ray.shutdown()
 

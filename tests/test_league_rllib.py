@@ -18,7 +18,7 @@ def trained(result, module):
 
 @pytest.fixture(scope="module")
 def algo():
-    ray.init(num_cpus=2, include_dashboard=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
     run = RunConfig(
         name="wiring",
         ppo={"train_batch_size": 200, "minibatch_size": 100, "num_epochs": 1, "hidden": [16]},

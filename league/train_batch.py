@@ -1,0 +1,47 @@
+"""PPO training data straight from rollout arrays, without episode objects (no Ray, no RLlib).
+
+A rollout of ``G`` games over ``T`` steps is held as arrays ``[t, game]`` (the fast
+sampler, ``league.batched_env_runner``, fills them). For one module and one agent slot:
+
+| array      | shape     | meaning                                                        |
+| ---------- | --------- | -------------------------------------------------------------- |
+| rewards    | (T, G)    | reward of step ``t``                                           |
+| values     | (T, G)    | the critic's value of the observation before step ``t``        |
+| bootstrap  | (G,)      | the critic's value of the observation after the last step      |
+| ended      | (T, G)    | the game ended on step ``t`` (a termination: A captured T, ...) |
+
+A game that ended on step ``t`` starts a new one on step ``t + 1``, so the recursion is
+cut there; a game still running after the last row is a truncated chunk, bootstrapped
+with ``bootstrap`` (its next call continues it). The time limit is a termination of the
+game, not a truncation (``envs``), so nothing is bootstrapped after it.
+
+This is the computation of RLlib's ``GeneralAdvantageEstimation`` learner connector on
+the same steps, with one difference: advantages are standardised over the real steps
+only (RLlib also counts the extra bootstrap step it appends to every chunk, whose
+advantage is 0), as CleanRL's PPO does. ``tests/test_fast_path.py`` checks the two.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def gae(
+    rewards: np.ndarray, values: np.ndarray, bootstrap: np.ndarray, ended: np.ndarray, gamma: float, lambda_: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Generalised advantage estimates and value targets ``(T, G)`` (Schulman et al. 2016)."""
+    advantages = np.zeros(values.shape, dtype=np.float64)
+    next_value = np.asarray(bootstrap, dtype=np.float64)
+    next_advantage = np.zeros_like(next_value)
+    for t in range(len(rewards) - 1, -1, -1):
+        live = 1.0 - ended[t]
+        delta = rewards[t] + gamma * live * next_value - values[t]
+        next_advantage = delta + gamma * lambda_ * live * next_advantage
+        advantages[t] = next_advantage
+        next_value = values[t]
+    return advantages, advantages + values
+
+
+def standardized(advantages: np.ndarray) -> np.ndarray:
+    """Zero mean, unit standard deviation (the floor 1e-4 as RLlib's connector has it)."""
+    return (advantages - advantages.mean()) / max(1e-4, float(advantages.std()))

@@ -1,0 +1,130 @@
+"""The fast path: PPO's training batch from the sampler's arrays equals RLlib's from episodes."""
+
+import numpy as np
+import pytest
+import ray
+import torch
+
+from league.config import RunConfig
+from league.players import Player
+from league.rllib_bridge import LeaguePPO, MatchPlan, build_config, match_counts, set_trainable
+from league.train_batch import gae
+from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
+from ray.rllib.core.columns import Columns
+from ray.rllib.evaluation.postprocessing import Postprocessing
+
+GAMES = 6
+ATTACKER = Player(id=1, side="attacker", kind="learner", version=0, reward_method=3)
+TEAM = Player(id=2, side="team", kind="learner", version=0)
+SCRIPTED_TEAM = Player(
+    id=3, side="team", kind="scripted", version=0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit"
+)
+
+
+def test_gae_cuts_at_game_ends_and_bootstraps_truncated_games():
+    gamma, lam = 0.9, 0.8
+    rewards = np.array([[1.0, 0.5], [2.0, -1.0], [0.0, 3.0]])
+    values = np.array([[0.3, 0.1], [0.2, -0.4], [0.6, 0.7]])
+    ended = np.array([[0, 0], [1, 0], [0, 0]], dtype=float)  # game 0 ends on step 1 and starts anew on step 2
+    bootstrap = np.array([0.25, -0.5])
+    advantages, targets = gae(rewards, values, bootstrap, ended, gamma, lam)
+    # By hand, as the lambda-weighted sum of one-step TD errors along each episode.
+    d00 = 1.0 + gamma * 0.2 - 0.3
+    d10 = 2.0 - 0.2  # the game ended: nothing after it
+    d20 = 0.0 + gamma * 0.25 - 0.6  # a truncated chunk: bootstrapped
+    d01, d11, d21 = 0.5 + gamma * -0.4 - 0.1, -1.0 + gamma * 0.7 + 0.4, 3.0 + gamma * -0.5 - 0.7
+    expected = np.array(
+        [
+            [d00 + gamma * lam * d10, d01 + gamma * lam * d11 + (gamma * lam) ** 2 * d21],
+            [d10, d11 + gamma * lam * d21],
+            [d20, d21],
+        ]
+    )
+    np.testing.assert_allclose(advantages, expected, rtol=1e-12)
+    np.testing.assert_allclose(targets, expected + values, rtol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def algo():
+    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
+    run = RunConfig(
+        name="fast",
+        seed=3,
+        ppo={"train_batch_size": 300, "minibatch_size": 100, "num_epochs": 1, "hidden": [16]},
+        resources={"num_envs_per_env_runner": GAMES, "sampler": "fast"},
+    )
+    # Half the games against the learning team, half against the scripted one: mixed matches.
+    plan = MatchPlan([{"attacker": ATTACKER.name}], [[TEAM.modules(), SCRIPTED_TEAM.modules()]], [[1.0, 1.0]], seed=0)
+    built = build_config(run, [ATTACKER, TEAM, SCRIPTED_TEAM], plan).build_algo()
+    yield built
+    built.stop()
+    ray.shutdown()
+
+
+def rows_by_step(columns):
+    """Row index by (observation, action) bytes: the same step found in either batch."""
+    return {
+        (obs.tobytes(), action.tobytes()): i for i, (obs, action) in enumerate(zip(columns[Columns.OBS], columns[Columns.ACTIONS]))
+    }
+
+
+def test_value_targets_and_advantages_are_those_of_rllibs_learner_connector(algo):
+    assert isinstance(algo, LeaguePPO)
+    runner = algo.env_runner
+    # One play of the games gives both: the episodes RLlib's pipeline takes, and the arrays.
+    runner._reset_all()
+    done, rows, t = runner._play(40, None, True, False)
+    episodes = done + runner._ongoing_chunks(rows, t)
+    fast = runner._training_data(rows, t)
+    assert set(fast) == {ATTACKER.name, TEAM.name}
+    assert any(e.is_done for e in episodes) and any(not e.is_done for e in episodes)
+
+    def connector_batch(learner):
+        # The pipeline PPO's Learner builds for itself (`PPOLearner.build`).
+        pipeline = learner.config.build_learner_connector(None, None)
+        pipeline.prepend(AddOneTsToEpisodesAndTruncate())
+        pipeline.append(GeneralAdvantageEstimation(gamma=learner.config.gamma, lambda_=learner.config.lambda_))
+        batch = pipeline(rl_module=learner.module, batch={}, episodes=episodes, shared_data={})
+        values = {m: learner.module[m].compute_values(batch[m]) for m in fast}
+        return {
+            m: {k: np.asarray(v.detach() if torch.is_tensor(v) else v) for k, v in {**batch[m], "values": values[m]}.items()}
+            for m in fast
+        }
+
+    [call] = algo.learner_group.foreach_learner(connector_batch)
+    standard = call.get()
+    for module_id, columns in fast.items():
+        reference = standard[module_id]
+        real = reference[Columns.LOSS_MASK].astype(bool)  # RLlib appends one bootstrap step per chunk
+        index = rows_by_step(columns)
+        order = [index[key] for key in zip(*(map(bytes, reference[c][real]) for c in (Columns.OBS, Columns.ACTIONS)))]
+        assert sorted(order) == list(range(len(columns[Columns.OBS])))  # the same steps, each once
+        for key in (Columns.ACTION_LOGP, Columns.ACTION_DIST_INPUTS):
+            np.testing.assert_array_equal(columns[key][order], reference[key][real])
+        # RLlib runs GAE in float32 over chunks of up to 40 steps with values and returns of
+        # size ~1 to 10: rounding of ~40 * 6e-8 * 10 = 2.4e-5 at most; ours runs in float64.
+        targets = reference[Postprocessing.VALUE_TARGETS][real]
+        np.testing.assert_allclose(columns[Postprocessing.VALUE_TARGETS][order], targets, rtol=0, atol=3e-5)
+        # Raw advantages (before standardising, which RLlib does over its bootstrap steps too).
+        raw = targets - reference["values"][real]
+        ours = columns[Postprocessing.ADVANTAGES][order]
+        np.testing.assert_allclose(ours, raw, rtol=0, atol=3e-5)
+
+
+def test_a_fast_training_iteration_trains_the_learners_and_counts_matches(algo):
+    set_trainable(algo, [ATTACKER.name])
+    def weights():
+        return {m: {k: np.array(v) for k, v in w.items()} for m, w in algo.learner_group.get_weights([ATTACKER.name, TEAM.name]).items()}
+
+    before = weights()
+    result = algo.train()
+    after = weights()
+    assert any(not np.array_equal(before[ATTACKER.name][k], after[ATTACKER.name][k]) for k in before[ATTACKER.name])
+    assert all(np.array_equal(before[TEAM.name][k], after[TEAM.name][k]) for k in before[TEAM.name])  # not trained now
+    runners = result["env_runners"]
+    assert runners["num_env_steps_sampled"] >= 300
+    # One epoch over the attacker's 300 steps (50 steps of 6 games; it plays each env step once).
+    assert result["learners"][ATTACKER.name]["num_module_steps_trained"] == 300
+    played = match_counts(result)
+    assert sum(count for _, _, count in played) == runners["num_episodes"] > 0
+    assert {modules[1:] for modules, _, _ in played} <= {tuple(TEAM.modules().values()), tuple(SCRIPTED_TEAM.modules().values())}
