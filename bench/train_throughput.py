@@ -1,18 +1,21 @@
-"""End-to-end training speed of the fast (batched) and the standard RLlib sampler.
+"""End-to-end training speed of the league's samplers, against plain PyTorch PPO as the ceiling.
 
-``python bench/train_throughput.py`` trains the attacker of a config (default: smoke)
-against the scripted team, once with ``resources.sampler=batched`` and once with
-``standard``, everything else equal, for the same number of env steps. For each it
-prints:
+``python bench/train_throughput.py`` trains the attacker of each named config (default:
+smoke and attacker_method2) against its first scripted team, once per sampler
+(``--samplers``, default ``fast batched``: the arrays straight to the Learner, and RLlib's
+standard learner path fed by the same batched games; ``standard``, RLlib's own env
+runner, is slow and so not run by default), everything else equal, for the same number of
+env steps; then ``bench/plain_ppo.py`` with the same network, batch and loss. For each:
 
-* env-steps/s over the whole training (sampling plus learning, after one warm-up
-  iteration), and the split of an iteration into sampling and learning;
+* env-steps/s over the whole training after one warm-up iteration, timed here by wall
+  clock (RLlib's own timers are smoothed averages), and the mean seconds per iteration;
 * when the attacker's training win rate (over its last ``--window`` episodes) first
   reached ``--target``, in seconds and env steps;
 * the trained attacker's win rate against the scripted team on 1000 fixed evaluation
-  games, with a 95% Wilson interval: the two samplers should land in the same band.
+  games, with a 95% Wilson interval: the samplers should land in the same band.
 
-The last line reads ``fast F env-steps/s, standard S env-steps/s, ratio R``.
+The last line per config reads ``fast F env-steps/s, standard S env-steps/s, plain P
+env-steps/s, fast/plain R`` (``standard``: the ``batched`` sampler's RLlib learner path).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from collections import deque
 
 import numpy as np
 import ray
+import torch
 
 from envs.agents import Outcome
 from envs.match import play
@@ -32,6 +36,8 @@ from league.config import RunConfig, load_config
 from league.evaluation import LearnedAgent, wilson_interval
 from league.players import Player
 from league.rllib_bridge import MatchPlan, build_config, match_counts, set_trainable
+
+from plain_ppo import train_plain  # bench/ beside this file
 
 ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 EVALUATION_GAMES = 1000
@@ -52,76 +58,93 @@ def train(run: RunConfig, env_steps: int, target: float, window: int) -> dict:
     algo.train()  # warm-up: first forward passes, Learner set-up
 
     recent: deque[bool] = deque(maxlen=window)
-    steps = 0
-    sampling = learning = 0.0
+    steps = iterations = 0
     reached = None
     start = time.perf_counter()
     while steps < env_steps:
         result = algo.train()
+        iterations += 1
         steps += result["env_runners"]["num_env_steps_sampled"]
-        sampling += result["timers"]["env_runner_sampling_timer"]
-        learning += result["timers"]["learner_update_timer"]
         for _, outcome, count in match_counts(result):
             recent.extend([outcome in ATTACKER_WINS] * count)
         if reached is None and len(recent) == window and np.mean(recent) >= target:
             reached = (time.perf_counter() - start, steps)
     wall = time.perf_counter() - start
-    iterations = result["training_iteration"] - 1
 
-    module = algo.get_module(attacker.name)
+    win_rate = evaluate(run, algo.get_module(attacker.name))
+    algo.stop()
+    return {"rate": steps / wall, "steps": steps, "wall": wall, "iteration": wall / iterations, "reached": reached, **win_rate}
+
+
+def evaluate(run: RunConfig, policy: torch.nn.Module) -> dict:
+    """Win rate of ``policy`` (with a ``deterministic_action``) against the scripted team on the fixed games."""
+    team_names = run.league.scripted_teams[0]
     players = {
-        "attacker": LearnedAgent(module, "attacker"),
+        "attacker": LearnedAgent(policy, "attacker"),
         "targeter": ScriptedPlayer("targeter", team_names.targeter),
         "defender": ScriptedPlayer("defender", team_names.defender),
     }
     games = play(run.game, players, evaluation_scenarios(run.game.scenario, EVALUATION_GAMES))
     wins = int(games.attacker_wins.sum())
-    algo.stop()
-    return {
-        "rate": steps / wall,
-        "steps": steps,
-        "wall": wall,
-        "sampling": sampling / max(iterations, 1),
-        "learning": learning / max(iterations, 1),
-        "reached": reached,
-        "win_rate": wins / EVALUATION_GAMES,
-        "interval": wilson_interval(wins, EVALUATION_GAMES),
-    }
+    return {"win_rate": wins / EVALUATION_GAMES, "interval": wilson_interval(wins, EVALUATION_GAMES)}
+
+
+class PlainPolicy(torch.nn.Module):
+    """The plain PPO agent seen as the league's modules are: ``deterministic_action``."""
+
+    def __init__(self, agent: torch.nn.Module):
+        super().__init__()
+        self.agent = agent
+
+    def deterministic_action(self, obs: torch.Tensor) -> torch.Tensor:
+        own = self.agent.pi[0].in_features  # the league's observation is followed by the global state
+        return self.agent.pi(obs[..., :own])
+
+
+def line(name: str, r: dict, target: float) -> str:
+    reached = f"{r['reached'][0]:.0f} s / {r['reached'][1]} env steps" if r.get("reached") else "not reached"
+    low, high = r["interval"]
+    timing = f"{r['steps']} env steps in {r['wall']:.0f} s" + (f", {r['iteration']:.2f} s per iteration" if "iteration" in r else "")
+    return (
+        f"{name:8s}: {r['rate']:.0f} env-steps/s ({timing}); training win rate {target}: {reached}; "
+        f"vs scripted team on {EVALUATION_GAMES} games: {r['win_rate']:.3f} [{low:.3f}, {high:.3f}]"
+    )
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default="smoke")
+    parser.add_argument("--configs", nargs="+", default=["smoke", "attacker_method2"])
     parser.add_argument("--set", dest="overrides", action="append", default=[], help="key=value config override")
-    parser.add_argument("--env-steps", type=int, default=400_000, help="training env steps per sampler")
+    parser.add_argument("--env-steps", type=int, default=300_000, help="training env steps per sampler")
     parser.add_argument("--standard-env-steps", type=int, help="fewer steps for the standard sampler (speed only)")
     parser.add_argument("--target", type=float, default=0.4, help="training win rate to time")
     parser.add_argument("--window", type=int, default=500, help="episodes behind the training win rate")
-    parser.add_argument("--samplers", nargs="+", choices=["batched", "standard"], default=["batched", "standard"])
+    parser.add_argument("--samplers", nargs="+", choices=["fast", "batched", "standard"], default=["fast", "batched"])
     args = parser.parse_args()
 
-    results = {}
-    for sampler in args.samplers:
-        run = load_config(args.config, [*args.overrides, f"resources.sampler={sampler}"])
-        steps = args.env_steps if sampler == "batched" else (args.standard_env_steps or args.env_steps)
-        ray.init(address="local", num_cpus=run.resources.num_cpus, include_dashboard=False, log_to_driver=False)
-        try:
-            results[sampler] = r = train(run, steps, args.target, args.window)
-        finally:
-            ray.shutdown()
-        reached = (
-            f"{r['reached'][0]:.0f} s / {r['reached'][1]} env steps" if r["reached"] else f"not within {r['steps']} env steps"
-        )
-        low, high = r["interval"]
+    for config in args.configs:
+        results = {}
+        for sampler in args.samplers:
+            run = load_config(config, [*args.overrides, f"resources.sampler={sampler}"])
+            torch.set_num_threads(run.resources.threads_for(1))
+            steps = args.standard_env_steps or args.env_steps if sampler == "standard" else args.env_steps
+            ray.init(address="local", num_cpus=run.resources.num_cpus, include_dashboard=False, log_to_driver=False)
+            try:
+                results[sampler] = train(run, steps, args.target, args.window)
+            finally:
+                ray.shutdown()
+            print(f"{config} {line(sampler, results[sampler], args.target)}", flush=True)
+        run = load_config(config, args.overrides)
+        plain = train_plain(run, args.env_steps)
+        results["plain"] = {**plain, **evaluate(run, PlainPolicy(plain["agent"]))}
+        print(f"{config} {line('plain', results['plain'], args.target)}", flush=True)
+        fast, plain_rate = results.get("fast", {}).get("rate", float("nan")), results["plain"]["rate"]
+        standard = results.get("batched", results.get("standard", {})).get("rate", float("nan"))
         print(
-            f"{sampler:8s}: {r['rate']:.0f} env-steps/s ({r['steps']} env steps in {r['wall']:.0f} s; per iteration "
-            f"sampling {r['sampling']:.2f} s, learning {r['learning']:.2f} s); training win rate {args.target} reached: "
-            f"{reached}; vs scripted team on {EVALUATION_GAMES} games: {r['win_rate']:.3f} [{low:.3f}, {high:.3f}]",
+            f"{config}: fast {fast:.0f} env-steps/s, standard {standard:.0f} env-steps/s, "
+            f"plain {plain_rate:.0f} env-steps/s, fast/plain {fast / plain_rate:.2f}",
             flush=True,
         )
-    if len(results) == 2:
-        fast, standard = results["batched"]["rate"], results["standard"]["rate"]
-        print(f"fast {fast:.0f} env-steps/s, standard {standard:.0f} env-steps/s, ratio {fast / standard:.1f}")
     return 0
 
 

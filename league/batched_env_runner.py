@@ -21,6 +21,13 @@ Differences, all for speed:
   RLlib's defaults, which only batch, sample from the action distribution and unbatch;
   a config with connectors of its own is refused.
 * Of the episode callbacks only ``on_episode_end`` is called (and ``on_sample_end``).
+* The agent-to-module mapping is asked with an ``EpisodeRef`` (the episode's id, all
+  that the league's ``MatchPlan`` reads), once per agent when a game starts.
+
+``sample_training_data`` is the fast path (``resources.sampler: fast``): the same play,
+but no episode objects at all; PPO's columns, with advantages and value targets by GAE
+over the arrays (``league.train_batch``), go straight to the Learner (``LeaguePPO``).
+Finished games still log their metrics and match; no episode callback is called.
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ import math
 import time
 import uuid
 from collections import defaultdict
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -73,6 +81,13 @@ RESET_INFOS: dict[str, dict] = {agent: {} for agent in AGENTS}  # what a reset r
 MATCHES_KEY = "league_matches"  # metrics key of the finished games by modules and outcome
 SEPARATOR = "|"
 EPISODE_ROWS = 64  # first guess of the rows an episode-count sample needs (it grows)
+
+
+@dataclass(frozen=True)
+class EpisodeRef:
+    """What this runner hands the agent-to-module mapping: the episode's id (``id_``)."""
+
+    id_: str
 
 
 class BatchedEnvRunner(MultiAgentEnvRunner):
@@ -174,14 +189,12 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
 
     def _new_episode(self, game: int) -> None:
         """A fresh episode id for ``game``, and its agents' modules from the mapping."""
-        episode = MultiAgentEpisode(
-            observation_space=self._spaces[0],
-            action_space=self._spaces[1],
-            agent_to_module_mapping_fn=self.config.policy_mapping_fn,
-        )
+        # The league's mapping (`MatchPlan`) reads only the episode's id: no episode object
+        # is built per game (RLlib's ids are uuid4 hex strings too).
+        episode = EpisodeRef(uuid.uuid4().hex)
         self._episode_ids[game] = episode.id_
         for i, agent in enumerate(AGENTS):
-            module_id = episode.module_for(agent)
+            module_id = self.config.policy_mapping_fn(agent, episode)
             if module_id not in self._module_ids:
                 self._module_ids.append(module_id)
             self._modules[game, i] = self._module_ids.index(module_id)
