@@ -28,6 +28,8 @@ Differences, all for speed:
 but no episode objects at all; PPO's columns, with advantages and value targets by GAE
 over the arrays (``league.train_batch``), go straight to the Learner (``LeaguePPO``).
 Finished games still log their metrics and match; no episode callback is called.
+Scripted players act on the games' exact state (as in evaluation), not on the float32
+global state that their RLModule decodes on the other paths.
 """
 
 from __future__ import annotations
@@ -43,8 +45,10 @@ import numpy as np
 import torch
 
 from envs.agents import AGENTS, Outcome
+from envs.scripted import ScriptedPlayer
 from envs.single import infos_of_steps
 from envs.vector_env import TargetDefenseVectorEnv, VectorStep
+from league.modules import ScriptedModule
 from league.train_batch import gae
 from ray.rllib.callbacks.utils import make_callback
 from ray.rllib.core.columns import Columns
@@ -221,7 +225,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         while (t < num_steps) if num_steps is not None else (num_done < num_episodes):
             if t == rows.capacity:
                 rows.grow()
-            actions = self._act(rows, t, explore, random_actions)
+            actions = self._act(rows, t, explore, random_actions, on_core=not episodes)
             result = self.games.step(actions)
             rows.store(t, actions, result, self._modules)
             self._returns += np.stack([result.rewards[agent] for agent in AGENTS], axis=1)
@@ -257,8 +261,12 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             ongoing.append(chunk)
         return ongoing
 
-    def _act(self, rows: "_Rows", t: int, explore: bool, random_actions: bool) -> dict[str, np.ndarray]:
-        """Every agent's action in every game: one forward pass per module."""
+    def _act(self, rows: "_Rows", t: int, explore: bool, random_actions: bool, on_core: bool) -> dict[str, np.ndarray]:
+        """Every agent's action in every game: one forward pass per module.
+
+        With ``on_core``, scripted players act on the games' exact state, as in evaluation
+        (``envs.match``), rather than on the float32 global state their module reads.
+        """
         n = self.num_envs
         actions = {agent: np.zeros((n, 2), dtype=np.float32) for agent in AGENTS}
         if random_actions:
@@ -270,8 +278,13 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 module_id = self._module_ids[index]
                 players = [(agent, np.flatnonzero(self._modules[:, i] == index)) for i, agent in enumerate(AGENTS)]
                 players = [(agent, games) for agent, games in players if len(games)]
+                module = self.module[module_id]
+                if on_core and isinstance(module, ScriptedModule):
+                    for agent, games in players:
+                        actions[agent][games] = ScriptedPlayer(agent, module.name).act(self.games.core)[games]
+                    continue
                 obs = np.concatenate([rows.observations[agent][t, games] for agent, games in players])
-                outputs = _forward(self.module[module_id], torch.from_numpy(obs), explore)
+                outputs = _forward(module, torch.from_numpy(obs), explore)
                 start = 0
                 for agent, games in players:
                     part = slice(start, start + len(games))
