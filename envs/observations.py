@@ -42,6 +42,8 @@ T-terminal (3, scaled); time left (1).
 
 from __future__ import annotations
 
+from typing import Sequence
+
 import numpy as np
 
 from envs.agents import ATTACKER, DEFENDER, TARGETER
@@ -70,8 +72,14 @@ def _with_role(obs: np.ndarray, agent: int) -> np.ndarray:
     return np.concatenate((obs, role), axis=1)
 
 
-def observe(config: GameConfig, positions: np.ndarray, headings: np.ndarray, time_left: np.ndarray) -> list[np.ndarray]:
-    """Observations ``[attacker, targeter, defender]``, each ``(N, size)`` float32."""
+def observe(
+    config: GameConfig,
+    positions: np.ndarray,
+    headings: np.ndarray,
+    time_left: np.ndarray,
+    agents: Sequence[int] = (ATTACKER, TARGETER, DEFENDER),
+) -> list[np.ndarray]:
+    """Observations of ``agents`` (default ``[attacker, targeter, defender]``), each ``(N, size)`` float32."""
     if config.observation == "paper":
         shared = np.concatenate(
             (
@@ -84,12 +92,12 @@ def observe(config: GameConfig, positions: np.ndarray, headings: np.ndarray, tim
             ),
             axis=1,
         )
-        return [_with_role(shared, agent).astype(np.float32) for agent in (ATTACKER, TARGETER, DEFENDER)]
+        return [_with_role(shared, agent).astype(np.float32) for agent in agents]
 
     scaled = positions / config.position_scale
     vectors = heading_vectors(headings)
     out = []
-    for agent in (ATTACKER, TARGETER, DEFENDER):
+    for agent in agents:
         own = scaled[:, agent]
         to_frame = yaw_frame(headings[:, agent, 0])
         pitch = headings[:, agent, 1]

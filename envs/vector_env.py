@@ -29,7 +29,7 @@ from envs.single import step_infos
 class VectorStep:
     """One step of every game."""
 
-    observations: dict[str, np.ndarray]  # agent -> (N, size) float32, final ones for games that ended
+    observations: dict[str, np.ndarray]  # agent -> (N, size) float32, final ones for games that ended (agents asked)
     rewards: dict[str, np.ndarray]  # agent -> (N,) float
     done: np.ndarray  # (N,) bool: the game ended on this step
     outcome: np.ndarray  # (N,) int ``Outcome`` value, RUNNING while going on
@@ -61,31 +61,34 @@ class TargetDefenseVectorEnv:
             self.generators = [np.random.default_rng(seed + i) for i in range(self.num_games)]
         return self.reset_games(np.arange(self.num_games))
 
-    def reset_games(self, games: np.ndarray) -> dict[str, np.ndarray]:
-        """Start the games at indices ``games`` anew, each from its own generator; their observations."""
+    def reset_games(self, games: np.ndarray, agents: tuple[str, ...] = AGENTS) -> dict[str, np.ndarray]:
+        """Start the games at indices ``games`` anew, each from its own generator; their observations
+        (of ``agents`` only: a sampler whose scripted players act on ``core`` needs no others)."""
         games = np.asarray(games, dtype=np.int64)
         if len(games):
             # `sample_positions` with n = 1 for each game, drawn from each game's generator.
             uniform = np.stack([self.generators[g].random(UNIFORMS_PER_START) for g in games])
             starts = positions_from_uniform(self.config.scenario, uniform)
             self.core.reset_games(games, positions=starts)
-        return self.observations(games)
+        return self.observations(games, agents)
 
-    def observations(self, games: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Every game's observations, or those of ``games`` only (rows in that order)."""
+    def observations(self, games: np.ndarray | None = None, agents: tuple[str, ...] = AGENTS) -> dict[str, np.ndarray]:
+        """Every game's observations, or those of ``games`` only (rows in that order), of ``agents``."""
+        if not agents:
+            return {}
         core, rows = self.core, slice(None) if games is None else games
         positions, headings, time_left = core.positions[rows], core.headings[rows], core.time_left[rows]
-        observations = observe(self.config, positions, headings, time_left)
+        observations = observe(self.config, positions, headings, time_left, [AGENTS.index(a) for a in agents])
         if self.with_global_state:
             state = global_state(self.config, positions, headings, time_left)
             observations = [np.concatenate((obs, state), axis=1) for obs in observations]
-        return dict(zip(AGENTS, observations))
+        return dict(zip(agents, observations))
 
-    def step(self, actions: dict[str, np.ndarray]) -> VectorStep:
-        """Step every running game with ``actions`` (agent -> ``(N, 2)``)."""
+    def step(self, actions: dict[str, np.ndarray], agents: tuple[str, ...] = AGENTS) -> VectorStep:
+        """Step every running game with ``actions`` (agent -> ``(N, 2)``); observations of ``agents``."""
         result = self.core.step(np.stack([np.asarray(actions[agent]) for agent in AGENTS], axis=1))
         return VectorStep(
-            observations=self.observations(),
+            observations=self.observations(agents=agents),
             rewards={agent: result.rewards[:, i] for i, agent in enumerate(AGENTS)},
             done=result.done,
             outcome=result.outcome,

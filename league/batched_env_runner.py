@@ -144,6 +144,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             else:
                 if force_reset or self._needs_seeded_reset:
                     self._reset_all()
+                else:  # the fast path may have left some agents' observations out
+                    self._observations = self.games.observations()
                 if num_timesteps is None:
                     num_timesteps = self.config.get_rollout_fragment_length(self.worker_index) * self.num_envs
                 episodes, rows, t = self._play(math.ceil(num_timesteps / self.num_envs), None, explore, random_actions)
@@ -226,7 +228,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             if t == rows.capacity:
                 rows.grow()
             actions = self._act(rows, t, explore, random_actions, on_core=not episodes)
-            result = self.games.step(actions)
+            observed = AGENTS if episodes else self._agents_that_observe()
+            result = self.games.step(actions, observed)
             rows.store(t, actions, result, self._modules)
             self._returns += np.stack([result.rewards[agent] for agent in AGENTS], axis=1)
             module_steps = _add_counts(module_steps, self._modules)
@@ -240,14 +243,21 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                         done_episodes.append(self._chunk(rows, game, start, t, ended=True))
                     else:
                         self._game_ended(game, int(self._env_t[game]) + t - start, int(result.outcome[game]))
-                rows.restart(t, ended, self.games.reset_games(ended))
-                rows.chunk_start[ended] = t
                 for game in ended:
                     self._new_episode(game)
+                observed = AGENTS if episodes else self._agents_that_observe()
+                rows.restart(t, ended, self.games.reset_games(ended, observed))
+                rows.chunk_start[ended] = t
         self._observations = {agent: rows.observations[agent][t] for agent in AGENTS}
         self._count_steps(n * t, num_done, module_steps)
         self._log_finished_episodes()
         return done_episodes, rows, t
+
+    def _agents_that_observe(self) -> tuple[str, ...]:
+        """Agents played by a learned module in some game: the fast path computes no
+        observation for the others (scripted players act on the games' state)."""
+        scripted = np.array([isinstance(self.module[m], ScriptedModule) for m in self._module_ids])
+        return tuple(agent for i, agent in enumerate(AGENTS) if not scripted[self._modules[:, i]].all())
 
     def _ongoing_chunks(self, rows: "_Rows", t: int) -> list[MultiAgentEpisode]:
         """The episodes still running after row ``t``, as chunks that the next call continues."""
@@ -539,7 +549,8 @@ class _Rows:
         for agent in AGENTS:
             self.actions[agent][t] = actions[agent]
             self.rewards[agent][t] = result.rewards[agent]
-            self.observations[agent][t + 1] = result.observations[agent]
+        for agent, obs in result.observations.items():  # the agents observed (all but on the fast path)
+            self.observations[agent][t + 1] = obs
         self.steps[t], self.time_limit[t], self.outcome[t] = result.steps, result.time_limit, result.outcome
         self.attacker_rewards[t] = result.attacker_rewards
 
@@ -552,8 +563,8 @@ class _Rows:
 
     def restart(self, t: int, games: np.ndarray, observations: dict[str, np.ndarray]) -> None:
         """Row ``t`` of ``games`` becomes the first observation of their new episodes."""
-        for agent in AGENTS:
-            self.observations[agent][t, games] = observations[agent]
+        for agent, obs in observations.items():
+            self.observations[agent][t, games] = obs
 
     def infos(self, game: int, start: int, end: int, agents: tuple[str, ...] = AGENTS) -> dict[str, list[dict]]:
         """Info dicts of ``agents`` after steps ``start..end - 1`` of ``game``."""
