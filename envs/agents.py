@@ -6,7 +6,6 @@ from enum import IntEnum
 
 ATTACKER, TARGETER, DEFENDER = 0, 1, 2
 AGENTS: tuple[str, str, str] = ("attacker", "targeter", "defender")
-TEAM: tuple[str, str] = ("targeter", "defender")
 
 
 class Outcome(IntEnum):
@@ -26,5 +25,3 @@ class Outcome(IntEnum):
     def attacker_wins(self) -> bool:
         return self in (Outcome.CAPTURED, Outcome.TIMEOUT)
 
-
-OUTCOME_NAMES: tuple[str, ...] = tuple(o.label for o in Outcome)

@@ -63,15 +63,3 @@ class Player:
             }
         agents = ("attacker",) if self.side == "attacker" else ("targeter", "defender")
         return {agent: self.name for agent in agents}
-
-
-@dataclass(frozen=True)
-class Match:
-    """Who plays which agent in one episode: the learner and one opponent."""
-
-    attacker: Player
-    team: Player
-
-    def module_for(self, agent: str) -> str:
-        side = self.attacker if agent == "attacker" else self.team
-        return side.modules()[agent]

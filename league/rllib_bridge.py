@@ -357,12 +357,6 @@ def add_snapshot(algo: Algorithm, run: RunConfig, snapshot: Player, source_modul
     )
 
 
-def add_scripted(algo: Algorithm, run: RunConfig, player: Player) -> None:
-    for module, spec in player_specs(run, player).items():
-        if module not in algo.config.policies:
-            algo.add_module(module_id=module, module_spec=spec)
-
-
 def save_module(algo: Algorithm, module_id: str, path: Path) -> None:
     """Write one module (class, spaces, config and weights) for use without the algorithm."""
     module = algo.get_module(module_id)

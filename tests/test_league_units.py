@@ -31,7 +31,7 @@ def write(tmp_path, text):
         ("name: x\nleague: {scripted_attackers: [teleport]}\n", "teleport"),
         ("name: x\nleague: {mode: protocol}\n", "phases"),
         ("seed: 1\n", "name"),
-        ("name: x\nresources: {sampler: fast}\n", "resources.sampler"),
+        ("name: x\nresources: {sampler: turbo}\n", "resources.sampler"),
         ("name: x\nevaluation: {custom_resources_per_worker: {evaluator: many}}\n", "custom_resources_per_worker"),
     ],
 )
