@@ -219,7 +219,6 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         """
         n = self.num_envs
         rows = _Rows(self._observations, num_steps if num_steps is not None else EPISODE_ROWS)
-        rows.chunk_start = np.zeros(n, dtype=np.int64)  # row of each game's first observation
         done_episodes: list[MultiAgentEpisode] = []
         num_done = 0
         module_steps = np.zeros(len(self._module_ids), dtype=np.int64)
