@@ -136,7 +136,9 @@ class BatchedGame:
         else:  # absolute: the desired heading, reached as far as the turn limits allow
             yaw_change = wrap_to_pi(actions[..., 0] - self.headings[..., 0])
             pitch_change = actions[..., 1] - self.headings[..., 1]
-        return limit_turn(self.headings, yaw_change, pitch_change, cfg.max_yaw_change, cfg.max_pitch_change, self.max_turn)
+        return limit_turn(
+            self.headings, yaw_change, pitch_change, cfg.max_yaw_change, cfg.max_pitch_change, self.max_turn
+        )
 
     def step(self, actions: np.ndarray) -> StepResult:
         """Advance every running game by one step; finished games stay as they are."""

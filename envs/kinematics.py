@@ -88,7 +88,8 @@ def _haversine(pitch: np.ndarray, yaw_change: np.ndarray, pitch_change: np.ndarr
     Haversine form, accurate for small and large angles:
     ``sin^2(a / 2) = sin^2(d theta / 2) + cos(theta) cos(theta') sin^2(d phi / 2)``.
     """
-    return np.sin(0.5 * pitch_change) ** 2 + np.cos(pitch) * np.cos(pitch + pitch_change) * np.sin(0.5 * yaw_change) ** 2
+    yaw_term = np.cos(pitch) * np.cos(pitch + pitch_change) * np.sin(0.5 * yaw_change) ** 2
+    return np.sin(0.5 * pitch_change) ** 2 + yaw_term
 
 
 def turn_angle(pitch: np.ndarray, yaw_change: np.ndarray, pitch_change: np.ndarray) -> np.ndarray:
@@ -125,7 +126,7 @@ def _scale_to_angle(
         sin_new = sin_pitch * cos_step + cos_pitch * sin_step
         yaw_term = cos_pitch * sin_y * sin_y
         excess = sin_p * sin_p + cos_new * yaw_term - goal
-        slope = sin_p * cos_p * pitch_change - sin_new * yaw_term * pitch_change + cos_pitch * cos_new * sin_y * cos_y * yaw_change
+        slope = (sin_p * cos_p - sin_new * yaw_term) * pitch_change + cos_pitch * cos_new * sin_y * cos_y * yaw_change
         hi, lo = np.where(excess > 0, c, hi), np.where(excess < 0, c, lo)
         with np.errstate(divide="ignore", invalid="ignore"):
             newton = c - excess / slope
@@ -137,7 +138,8 @@ def _scale_to_angle(
             return scale
         keep = ~done
         todo, c, lo, hi, goal, tolerance = todo[keep], c[keep], lo[keep], hi[keep], goal[keep], tolerance[keep]
-        cos_pitch, sin_pitch, yaw_change, pitch_change = cos_pitch[keep], sin_pitch[keep], yaw_change[keep], pitch_change[keep]
+        cos_pitch, sin_pitch = cos_pitch[keep], sin_pitch[keep]
+        yaw_change, pitch_change = yaw_change[keep], pitch_change[keep]
     scale[todo] = lo  # not reached in practice: bisection alone gets there in ~50 steps
     return scale
 
@@ -170,7 +172,9 @@ def limit_turn(
     full = _haversine(pitch, yaw_change, pitch_change)
     binding = full > np.sin(0.5 * max_angle) ** 2
     if binding.any():
-        scale = _scale_to_angle(pitch[binding], yaw_change[binding], pitch_change[binding], full[binding], max_angle[binding])
+        scale = _scale_to_angle(
+            pitch[binding], yaw_change[binding], pitch_change[binding], full[binding], max_angle[binding]
+        )
         change[tuple(axis[binding] for axis in rows)] *= scale[:, None]
     return change
 
@@ -207,7 +211,12 @@ class Arcs:
 
     @classmethod
     def of_turn(
-        cls, positions: np.ndarray, headings: np.ndarray, new_headings: np.ndarray, change: np.ndarray, speeds: np.ndarray
+        cls,
+        positions: np.ndarray,
+        headings: np.ndarray,
+        new_headings: np.ndarray,
+        change: np.ndarray,
+        speeds: np.ndarray,
     ) -> "Arcs":
         """Arcs of bodies at ``positions`` turning from ``headings`` to ``new_headings``.
 
@@ -238,7 +247,8 @@ class Arcs:
 
     def take(self, index) -> "Arcs":
         """The arcs at ``index`` (anything that indexes the leading axes)."""
-        return Arcs(*(field[index] for field in (self.start, self.tangent, self.normal, self.angle, self.speed, self.end)))
+        fields = (self.start, self.tangent, self.normal, self.angle, self.speed, self.end)
+        return Arcs(*(field[index] for field in fields))
 
     def at(self, fraction: np.ndarray | float) -> np.ndarray:
         """Positions ``(..., 3)`` at ``fraction`` of the step; extra leading axes of ``fraction`` broadcast."""

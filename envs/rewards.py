@@ -71,10 +71,11 @@ def attacker_method3(
 
     With ``dl = lambda_t - lambda_{t-1}``:
 
-    | case                            | ``as_printed`` (default)                    | ``corrected``                               |
-    | ------------------------------- | ------------------------------------------- | ------------------------------------------- |
-    | lambda_{t-1} - lambda_t >= 0.05 | min(2 abs(dl) + 1, 2) * 10 / Gamma          | the same                                    |
-    | lambda_{t-1} - lambda_t <  0.05 | -max(-2 abs(dl), -1) * 10 / Gamma - gamma ** C | -(min(2 abs(dl), 1) + gamma ** C) * 10 / Gamma |
+    | case                            | reward                                                      |
+    | ------------------------------- | ----------------------------------------------------------- |
+    | lambda_{t-1} - lambda_t >= 0.05 | min(2 abs(dl) + 1, 2) * 10 / Gamma                          |
+    | lambda_{t-1} - lambda_t <  0.05 | ``as_printed``: -max(-2 abs(dl), -1) * 10 / Gamma - gamma ** C |
+    |                                 | ``corrected``: -(min(2 abs(dl), 1) + gamma ** C) * 10 / Gamma  |
 
     The second row is the over-chasing case: its counter ``C`` is incremented first, so
     the first such step costs ``gamma ** 1``. As printed, ``-max(-2|dl|, -1)`` is a

@@ -88,7 +88,9 @@ def first_contact_on_arcs(arcs: Arcs, pairs: np.ndarray, radius: np.ndarray) -> 
     return contact
 
 
-def _refine(first: Arcs, second: Arcs, start: np.ndarray, end: np.ndarray, bow: np.ndarray, radius: np.ndarray) -> np.ndarray:
+def _refine(
+    first: Arcs, second: Arcs, start: np.ndarray, end: np.ndarray, bow: np.ndarray, radius: np.ndarray
+) -> np.ndarray:
     """Steps 2 and 3 for candidate pairs ``(C,)`` whose chord over the whole step may touch."""
     contact = np.full(bow.shape, np.inf)
     # One row per interval still in question: its candidate, its start, its chord's ends.

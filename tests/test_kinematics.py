@@ -147,7 +147,8 @@ def test_arc_points_lie_on_one_circle_at_constant_speed():
     radius = V / np.where(turning, arcs.angle, 1.0)
     centre = positions + radius[..., None] * arcs.normal
     from_centre = np.linalg.norm(points - centre, axis=-1)
-    np.testing.assert_allclose(from_centre[:, turning], np.broadcast_to(radius, from_centre.shape)[:, turning], rtol=1e-9)
+    expected = np.broadcast_to(radius, from_centre.shape)
+    np.testing.assert_allclose(from_centre[:, turning], expected[:, turning], rtol=1e-9)
 
 
 @pytest.mark.parametrize("action_mode", ["relative", "absolute"])

@@ -5,7 +5,7 @@ import pytest
 
 from envs.agents import Outcome
 from envs.config import GameConfig
-from envs.core import EVENT_ORDER, EVENT_PAIRS, TERMINAL_BODY, BatchedGame
+from envs.core import EVENT_ORDER, EVENT_PAIRS, BatchedGame
 from envs.geometry import first_contact
 from envs.kinematics import Arcs, limit_turn, turned
 from envs.sweep import TOLERANCE, first_contact_on_arcs
@@ -27,18 +27,23 @@ def hard_turn_steps(rng, n, spread):
     headings = np.stack((rng.uniform(0, 2 * np.pi, (n, 3)), rng.uniform(-1.2, 1.2, (n, 3))), axis=-1)
     yaw = rng.choice([-1.0, 1.0], (n, 3)) * config.max_yaw_change
     pitch = rng.choice([-1.0, 0.0, 1.0], (n, 3)) * config.max_pitch_change
-    change = limit_turn(headings, yaw, pitch, config.max_yaw_change, config.max_pitch_change, SPEEDS / config.axis_length)
+    max_turn = SPEEDS / config.axis_length
+    change = limit_turn(headings, yaw, pitch, config.max_yaw_change, config.max_pitch_change, max_turn)
     return Arcs.of_turn(positions, headings, turned(headings, change), change, SPEEDS)
+
+
+def fields(arcs):
+    return (arcs.start, arcs.tangent, arcs.normal, arcs.angle, arcs.speed, arcs.end)
 
 
 def with_terminal(arcs):
     """The arcs of the three bodies and the terminal, resting at the origin, as ``(n, 4)`` fields."""
-    fields = [np.concatenate((f, np.zeros_like(f[:, :1])), axis=1) for f in (arcs.start, arcs.tangent, arcs.normal, arcs.angle, arcs.speed, arcs.end)]
-    return Arcs(*fields)
+    return Arcs(*(np.concatenate((f, np.zeros_like(f[:, :1])), axis=1) for f in fields(arcs)))
 
 
 def dense_reference(one, other, radius):
-    """Per pair: the closest approach over the step, and the first and last sub-step whose chord comes within ``radius +- AMBIGUOUS``."""
+    """Per pair: the closest approach over the step, and the first sub-step whose chord comes
+    within ``radius + AMBIGUOUS`` (may hold a contact), and within ``radius - AMBIGUOUS`` (surely does)."""
     fractions = np.linspace(0.0, 1.0, SUB_STEPS + 1)[:, None]
     relative = one.at(fractions) - other.at(fractions)  # (SUB_STEPS + 1, P, 3)
     start, end = relative[:-1], relative[1:]
@@ -55,11 +60,10 @@ def dense_reference(one, other, radius):
 
 def event_pairs(arcs, pair):
     bodies = with_terminal(arcs)
-    take = lambda side: Arcs(*(f[:, EVENT_PAIRS[pair, side]] for f in (bodies.start, bodies.tangent, bodies.normal, bodies.angle, bodies.speed, bodies.end)))
-    return take(0), take(1)
+    return tuple(Arcs(*(f[:, EVENT_PAIRS[pair, side]] for f in fields(bodies))) for side in (0, 1))
 
 
-@pytest.mark.parametrize("pair", [0, 1, 2], ids=["attacker_on_targeter", "targeter_on_terminal", "defender_on_attacker"])
+@pytest.mark.parametrize("pair", [0, 1, 2], ids=["attacker_targeter", "targeter_terminal", "defender_attacker"])
 def test_sweep_matches_a_dense_reference_on_hard_turns(pair):
     rng = np.random.default_rng(pair)
     decided_by_the_bow = 0
@@ -115,7 +119,8 @@ def test_core_events_match_the_dense_reference():
     expected = np.where(first_sure.min(axis=0) < SUB_STEPS, EVENT_ORDER[earliest], Outcome.RUNNING)
     assert decided.sum() > 0.9 * n
     np.testing.assert_array_equal(result.outcome[decided], expected[decided])
-    assert set(expected[decided]) == {Outcome.RUNNING, Outcome.CAPTURED, Outcome.TERMINAL_REACHED, Outcome.ATTACKER_INTERCEPTED}
+    every_outcome = {Outcome.RUNNING, Outcome.CAPTURED, Outcome.TERMINAL_REACHED, Outcome.ATTACKER_INTERCEPTED}
+    assert set(expected[decided]) == every_outcome
 
 
 FAR = np.array([20.0, 20.0, 20.0])  # away from the terminal
@@ -137,13 +142,15 @@ def closest_approach(arcs, first, second):
 
 def test_a_chord_within_reach_of_the_defender_is_not_an_interception():
     # Reproduction from the issue: the chords pass within 0.18, the arcs only within 0.2005.
-    result, arcs = one_step([[-0.0768, 0.211, 0.0], [0.0, 30.0, 0.0], [0.0, 0.0, 0.0]], (4.4682, 0.0, 0.0), [[0, 0], [0, 0], [1, 0]])
+    positions = [[-0.0768, 0.211, 0.0], [0.0, 30.0, 0.0], [0.0, 0.0, 0.0]]
+    result, arcs = one_step(positions, (4.4682, 0.0, 0.0), [[0, 0], [0, 0], [1, 0]])
     assert closest_approach(arcs, 0, 2) == pytest.approx(0.2005, abs=1e-4)
     assert result.outcome[0] == Outcome.RUNNING
 
 
 def test_an_arc_within_reach_of_the_targeter_is_a_capture():
     # Reproduction from the issue: the chord misses T, A's arc comes within 0.1696 of it.
-    result, arcs = one_step([[0.0, 0.0, 0.0], [0.185, 0.05, 0.0], [0.0, -30.0, 0.0]], (0.0, 0.0, 0.0), [[1, 0], [0, 0], [0, 0]])
+    positions = [[0.0, 0.0, 0.0], [0.185, 0.05, 0.0], [0.0, -30.0, 0.0]]
+    result, arcs = one_step(positions, (0.0, 0.0, 0.0), [[1, 0], [0, 0], [0, 0]])
     assert closest_approach(arcs, 0, 1) == pytest.approx(0.1696, abs=1e-4)
     assert result.outcome[0] == Outcome.CAPTURED
