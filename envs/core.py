@@ -68,6 +68,9 @@ class BatchedGame:
         self.targeter_velocity = np.zeros((num_games, 3))
         self.collision_distance = np.zeros(num_games)
         self.overchase_count = np.zeros(num_games, dtype=np.int64)
+        # The unit vectors of the headings after the last step, with the headings they belong
+        # to: the next step starts from them unless the headings were changed in between.
+        self._vectors_of: tuple[np.ndarray, np.ndarray] | None = None
 
     # ----------------------------------------------------------------- reset
     def reset(self, rng: np.random.Generator | None = None, positions: np.ndarray | None = None) -> None:
@@ -88,6 +91,9 @@ class BatchedGame:
             raise ValueError(f"starting positions must have shape ({len(games)}, 3, 3), got {positions.shape}")
         self.positions[games] = positions
         self.headings[games] = 0.0  # the paper's initial angles: yaw = pitch = 0
+        if self._vectors_of is not None:
+            self._vectors_of[0][games] = 0.0
+            self._vectors_of[1][games] = (1.0, 0.0, 0.0)  # heading_vectors of (0, 0), exactly
         self.steps[games] = 0
         self.time_limit[games] = time_limit_steps(self.config, norm(positions[:, TARGETER]))
         self.outcome[games] = Outcome.RUNNING
@@ -147,7 +153,7 @@ class BatchedGame:
         headings = turned(self.headings, change)
         running = self.active
         before = self.positions
-        arcs = Arcs.of_turn(before, self.headings, headings, change, self.speeds)
+        arcs = Arcs.of_turn(before, self.headings, headings, change, self.speeds, self._heading_vectors())
         after = arcs.end
 
         # Events, swept along the arcs over the whole step, in EVENT_ORDER (envs.sweep).
@@ -174,9 +180,17 @@ class BatchedGame:
         keep = ~running
         self.positions = np.where(keep[:, None, None], before, after)
         self.headings = np.where(keep[:, None, None], self.headings, headings)
+        vectors = np.where(keep[:, None, None], arcs.tangent, arcs.end_tangent)
+        self._vectors_of = (self.headings.copy(), vectors)
         self.steps = np.where(running, steps, self.steps)
         self.outcome = outcome
         return StepResult(reward, done, outcome, event_fraction, attacker_rewards)
+
+    def _heading_vectors(self) -> np.ndarray:
+        """Unit vectors of ``self.headings``: those of the last step if the headings are unchanged."""
+        if self._vectors_of is not None and np.array_equal(self._vectors_of[0], self.headings):
+            return self._vectors_of[1]
+        return heading_vectors(self.headings)
 
     def _contact_fractions(self, arcs: Arcs) -> np.ndarray:
         """``(N, 3)``: when in the step each event's pair first comes within its radius (``inf``: never)."""

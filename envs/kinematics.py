@@ -158,8 +158,10 @@ def limit_turn(
     leaves the axis length out.
     """
     pitch = headings[..., 1]
-    yaw_change = np.clip(yaw_change, -max_yaw, max_yaw)
-    pitch_change = np.clip(pitch + np.clip(pitch_change, -max_pitch, max_pitch), -HALF_PI, HALF_PI) - pitch
+    # np.minimum / np.maximum: the same as np.clip, at half its cost on small arrays.
+    yaw_change = np.minimum(np.maximum(yaw_change, -max_yaw), max_yaw)
+    pitch_change = np.minimum(np.maximum(pitch_change, -max_pitch), max_pitch)
+    pitch_change = np.minimum(np.maximum(pitch + pitch_change, -HALF_PI), HALF_PI) - pitch
     change = np.stack((yaw_change, pitch_change), axis=-1)
     max_angle = np.broadcast_to(max_angle, pitch.shape)
     # The angle is at most the length of (d phi, d theta) (the sphere's metric is
@@ -182,7 +184,7 @@ def limit_turn(
 def turned(headings: np.ndarray, change: np.ndarray) -> np.ndarray:
     """Headings after a change from ``limit_turn`` (step 3): yaw wrapped, pitch in range."""
     yaw = np.mod(headings[..., 0] + change[..., 0], TWO_PI)
-    pitch = np.clip(headings[..., 1] + change[..., 1], -HALF_PI, HALF_PI)  # only rounding to undo
+    pitch = np.minimum(np.maximum(headings[..., 1] + change[..., 1], -HALF_PI), HALF_PI)  # only rounding to undo
     return np.stack((yaw, pitch), axis=-1)
 
 
@@ -208,6 +210,7 @@ class Arcs:
     angle: np.ndarray  # (...,) heading change over the step, radians in [0, pi]
     speed: np.ndarray  # (...,) path length per step
     end: np.ndarray  # (..., 3) positions at the end of the step (``at(1)``)
+    end_tangent: np.ndarray  # (..., 3) unit heading at the end of the step
 
     @classmethod
     def of_turn(
@@ -217,13 +220,16 @@ class Arcs:
         new_headings: np.ndarray,
         change: np.ndarray,
         speeds: np.ndarray,
+        start: np.ndarray | None = None,
     ) -> "Arcs":
         """Arcs of bodies at ``positions`` turning from ``headings`` to ``new_headings``.
 
         ``change`` is the turn from ``limit_turn`` (``new_headings = turned(headings,
-        change)``); it picks the plane of an exact U-turn.
+        change)``); it picks the plane of an exact U-turn. ``start`` may pass
+        ``heading_vectors(headings)`` if the caller has them.
         """
-        start, end = heading_vectors(headings), heading_vectors(new_headings)
+        start = heading_vectors(headings) if start is None else start
+        end = heading_vectors(new_headings)
         cos_angle = dot(start, end)
         normal = end - cos_angle[..., None] * start
         sin_angle = np.sqrt(dot(normal, normal))
@@ -243,19 +249,25 @@ class Arcs:
             halfway -= dot(halfway, start[rows])[..., None] * start[rows]
             normal[rows] = halfway / np.sqrt(dot(halfway, halfway))[..., None]
             end_positions[rows] = positions[rows] + (2.0 / np.pi) * speed[rows][..., None] * normal[rows]
-        return cls(positions, start, normal, angle, speed, end_positions)
+        return cls(positions, start, normal, angle, speed, end_positions, end)
 
     def take(self, index) -> "Arcs":
         """The arcs at ``index`` (anything that indexes the leading axes)."""
-        fields = (self.start, self.tangent, self.normal, self.angle, self.speed, self.end)
+        fields = (self.start, self.tangent, self.normal, self.angle, self.speed, self.end, self.end_tangent)
         return Arcs(*(field[index] for field in fields))
 
-    def at(self, fraction: np.ndarray | float) -> np.ndarray:
-        """Positions ``(..., 3)`` at ``fraction`` of the step; extra leading axes of ``fraction`` broadcast."""
-        x = self.angle * fraction
-        along = self.speed * fraction * _sin_over(x)
-        across = self.speed * fraction * 0.5 * x * _sin_over(0.5 * x) ** 2
-        return self.start + along[..., None] * self.tangent + across[..., None] * self.normal
+    def at(self, fraction: np.ndarray | float, rows: np.ndarray | None = None) -> np.ndarray:
+        """Positions ``(..., 3)`` at ``fraction`` of the step; extra leading axes of ``fraction`` broadcast.
+
+        ``rows`` picks arcs along the first axis (the same as ``take(rows).at(fraction)``).
+        """
+        start, tangent, normal, angle, speed = self.start, self.tangent, self.normal, self.angle, self.speed
+        if rows is not None:
+            start, tangent, normal, angle, speed = start[rows], tangent[rows], normal[rows], angle[rows], speed[rows]
+        x = angle * fraction
+        along = speed * fraction * _sin_over(x)
+        across = speed * fraction * 0.5 * x * _sin_over(0.5 * x) ** 2
+        return start + along[..., None] * tangent + across[..., None] * normal
 
     @property
     def bow(self) -> np.ndarray:

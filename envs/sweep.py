@@ -54,8 +54,9 @@ def _pick(arcs: Arcs, game: np.ndarray, body: np.ndarray) -> Arcs:
     resting = body == arcs.angle.shape[1]
     picked = arcs.take((game, np.where(resting, 0, body)))
     moving = ~resting
-    start = picked.start * moving[:, None]
-    return Arcs(start, picked.tangent, picked.normal, picked.angle * moving, picked.speed * moving, start)
+    start, end = picked.start * moving[:, None], picked.end * moving[:, None]
+    angle, speed = picked.angle * moving, picked.speed * moving
+    return Arcs(start, picked.tangent, picked.normal, angle, speed, end, picked.end_tangent)
 
 
 def first_contact_on_arcs(arcs: Arcs, pairs: np.ndarray, radius: np.ndarray) -> np.ndarray:
@@ -72,18 +73,21 @@ def first_contact_on_arcs(arcs: Arcs, pairs: np.ndarray, radius: np.ndarray) -> 
     resting = other == arcs.angle.shape[1]
     other_body, moving = np.where(resting, 0, other), (~resting).astype(np.float64)
 
-    def relative(field: np.ndarray) -> np.ndarray:
+    def relative(field: np.ndarray) -> np.ndarray:  # (N, K, ...): one minus other
         return np.take(field, one, axis=1) - np.take(field, other_body, axis=1) * moving[:, None]
 
-    relative_start, relative_end = relative(arcs.start), relative(arcs.end)
-    bow = arcs.bow
-    pair_bow = np.take(bow, one, axis=1) + np.take(bow, other_body, axis=1) * moving
-    contact = np.full(pair_bow.shape, np.inf)
-    game, pair = np.nonzero(_chord_distance(relative_start, relative_end) <= radius + pair_bow)
-    if len(game):
-        contact[game, pair] = _refine(
-            _pick(arcs, game, one[pair]), _pick(arcs, game, other[pair]),
-            relative_start[game, pair], relative_end[game, pair], pair_bow[game, pair], radius[pair],
+    # A body flies at most its speed in a step: pairs farther apart than the radius plus
+    # both speeds cannot touch (most pairs, most steps).
+    separation = relative(arcs.start)
+    reach = radius + np.take(arcs.speed, one, axis=1) + np.take(arcs.speed, other_body, axis=1) * moving
+    contact = np.full(reach.shape, np.inf)
+    game, pair = np.nonzero(dot(separation, separation) <= reach * reach)
+    first, second = _pick(arcs, game, one[pair]), _pick(arcs, game, other[pair])
+    start, end, bow = first.start - second.start, first.end - second.end, first.bow + second.bow
+    near = _chord_distance(start, end) <= radius[pair] + bow
+    if near.any():
+        contact[game[near], pair[near]] = _refine(
+            first.take(near), second.take(near), start[near], end[near], bow[near], radius[pair[near]]
         )
     return contact
 
@@ -108,7 +112,7 @@ def _refine(
                 break
         width /= SPLIT
         fractions = (lo[:, None] + width * _STEPS).T  # (SPLIT + 1, rows)
-        points = first.take(rows).at(fractions) - second.take(rows).at(fractions)
+        points = first.at(fractions, rows) - second.at(fractions, rows)
         start, end = points[:-1], points[1:]  # (SPLIT, rows, 3): the parts' chords
         distance = _chord_distance(start, end)
         margin = bow[rows] * width * width

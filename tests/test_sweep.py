@@ -33,7 +33,7 @@ def hard_turn_steps(rng, n, spread):
 
 
 def fields(arcs):
-    return (arcs.start, arcs.tangent, arcs.normal, arcs.angle, arcs.speed, arcs.end)
+    return (arcs.start, arcs.tangent, arcs.normal, arcs.angle, arcs.speed, arcs.end, arcs.end_tangent)
 
 
 def with_terminal(arcs):
