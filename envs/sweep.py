@@ -15,7 +15,7 @@ at fraction ``s`` of the step.
    surely does.
 2. Start from the whole step; split every interval that may hold a contact into
    ``SPLIT`` parts and test each part again, dropping the parts after the first part that
-   surely holds a contact. Stop when ``B w^2 <= TOLERANCE`` (five rounds with the
+   surely holds a contact. Stop when ``B w^2 <= TOLERANCE`` (at most five rounds with the
    paper's speeds and turn limits).
 3. The contact time is where the chord of the first remaining part meets the radius.
 
