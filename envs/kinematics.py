@@ -14,7 +14,7 @@ One step of one agent:
    ``v / L`` per step. The bound applies to the true angle between the old heading and
    the new one, after the clamp: where that angle exceeds ``v / L``, the turn
    ``(d phi, d theta)`` is scaled by the ``c`` in ``(0, 1)`` at which it is exactly
-   ``v / L`` (Newton's method on the angle, converged to ``TURN_ANGLE_TOLERANCE``).
+   ``v / L`` (bracketed Newton's method, to ``TURN_ANGLE_TOLERANCE`` = 1e-12 rad).
    Scaling keeps the direction of the command and the yaw and pitch limits. With the
    paper's numbers it binds for T only (``v_T / L = 1.3`` rad, while a full yaw command
    turns T by pi/2); A and D turn at most ~1.72 rad, below ``v_A / L = 1.8``.

@@ -82,6 +82,8 @@ def first_contact_on_arcs(arcs: Arcs, pairs: np.ndarray, radius: np.ndarray) -> 
     reach = radius + np.take(arcs.speed, one, axis=1) + np.take(arcs.speed, other_body, axis=1) * moving
     contact = np.full(reach.shape, np.inf)
     game, pair = np.nonzero(dot(separation, separation) <= reach * reach)
+    if not len(game):
+        return contact
     first, second = _pick(arcs, game, one[pair]), _pick(arcs, game, other[pair])
     start, end, bow = first.start - second.start, first.end - second.end, first.bow + second.bow
     near = _chord_distance(start, end) <= radius[pair] + bow
