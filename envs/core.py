@@ -17,7 +17,7 @@ import numpy as np
 from envs import rewards
 from envs.agents import ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.config import GameConfig
-from envs.geometry import angle_between, lead_intercept, norm
+from envs.geometry import angle_between, intercept_time, lead_intercept, norm
 from envs.kinematics import Arcs, heading_vectors, limit_turn, turned, wrap_to_pi
 from envs.observations import global_state, observe
 from envs.scenarios import sample_positions
@@ -120,10 +120,9 @@ class BatchedGame:
         return global_state(self.config, self.positions, self.headings, self.time_left)
 
     def _collision_distance(self, positions: np.ndarray, targeter_velocity: np.ndarray) -> np.ndarray:
-        """Method 3's ``lambda``: distance from A to its lead-intercept point on T."""
-        attacker = positions[:, ATTACKER]
-        aim = lead_intercept(attacker, self.config.v_attacker, positions[:, TARGETER], targeter_velocity)
-        return norm(aim - attacker)
+        """Method 3's ``lambda``: distance from A to its lead-intercept point on T (``v_A t*``)."""
+        speed = self.config.v_attacker
+        return speed * intercept_time(positions[:, ATTACKER], speed, positions[:, TARGETER], targeter_velocity)
 
     # ----------------------------------------------------------------- step
     def commanded_turn(self, actions: np.ndarray) -> np.ndarray:

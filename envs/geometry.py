@@ -27,18 +27,23 @@ def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(np.where(lengths > 0, cos, 1.0), -1.0, 1.0))
 
 
-def lead_intercept(chaser: np.ndarray, speed: float, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-    """Point where a chaser at ``speed`` meets a target moving at constant ``velocity``.
+def intercept_time(chaser: np.ndarray, speed: float, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """Time at which a chaser at ``speed`` meets a target moving at constant ``velocity``.
 
     Solves ``|r + u t| = s t`` with ``r = target - chaser``:
     ``t* = (r.u + sqrt((r.u)^2 + (s^2 - |u|^2) |r|^2)) / (s^2 - |u|^2)``, the one
-    positive root when ``s > |u|``. Returns ``target + velocity * t*``.
+    positive root when ``s > |u|``. The meeting point is ``speed * t*`` from the chaser.
     """
     r = target - chaser
     ru = dot(r, velocity)
     margin = speed**2 - dot(velocity, velocity)  # > 0 since the chaser is faster
-    t_star = (ru + np.sqrt(ru * ru + margin * dot(r, r))) / margin
-    return target + velocity * t_star[..., None]
+    return (ru + np.sqrt(ru * ru + margin * dot(r, r))) / margin
+
+
+def lead_intercept(chaser: np.ndarray, speed: float, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """Point where a chaser at ``speed`` meets a target moving at constant ``velocity``:
+    ``target + velocity * t*`` (``intercept_time``)."""
+    return target + velocity * intercept_time(chaser, speed, target, velocity)[..., None]
 
 
 def first_contact(start: np.ndarray, end: np.ndarray, radius: float | np.ndarray) -> np.ndarray:

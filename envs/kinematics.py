@@ -115,9 +115,9 @@ def _scale_to_angle(
     cos_pitch, sin_pitch = np.cos(pitch), np.sin(pitch)
     lo, hi = np.zeros_like(target), np.ones_like(target)
     c = 0.5 * target / np.arcsin(np.sqrt(full))
-    # Each turn stops on its own (never on its neighbours'), so a game's result does not
-    # depend on the other games in the batch.
-    scale, todo = np.empty_like(target), np.arange(len(target))
+    # Each turn's result is fixed when it converges, whatever its neighbours still do, so a
+    # game's result does not depend on the other games in the batch.
+    scale, finished = np.zeros_like(target), np.zeros(target.shape, dtype=bool)
     for _ in range(MAX_SCALE_STEPS):
         half_pitch, half_yaw = 0.5 * c * pitch_change, 0.5 * c * yaw_change
         sin_p, cos_p, sin_y, cos_y = np.sin(half_pitch), np.cos(half_pitch), np.sin(half_yaw), np.cos(half_yaw)
@@ -131,17 +131,13 @@ def _scale_to_angle(
         with np.errstate(divide="ignore", invalid="ignore"):
             newton = c - excess / slope
         inside = (newton > lo) & (newton < hi)
-        done = np.abs(excess) <= tolerance
-        scale[todo[done]] = np.where(inside, newton, c)[done]  # one more Newton step: exact to rounding
-        c = np.where(inside, newton, 0.5 * (lo + hi))
-        if done.all():
+        done = ~finished & (np.abs(excess) <= tolerance)
+        scale = np.where(done, np.where(inside, newton, c), scale)  # one more Newton step: exact to rounding
+        finished |= done
+        if finished.all():
             return scale
-        keep = ~done
-        todo, c, lo, hi, goal, tolerance = todo[keep], c[keep], lo[keep], hi[keep], goal[keep], tolerance[keep]
-        cos_pitch, sin_pitch = cos_pitch[keep], sin_pitch[keep]
-        yaw_change, pitch_change = yaw_change[keep], pitch_change[keep]
-    scale[todo] = lo  # not reached in practice: bisection alone gets there in ~50 steps
-    return scale
+        c = np.where(inside, newton, 0.5 * (lo + hi))
+    return np.where(finished, scale, lo)  # not reached in practice: bisection alone gets there in ~50 steps
 
 
 def limit_turn(
