@@ -12,8 +12,11 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, model_validator
 
+from envs.rewards import Method3Variant
+
 ObservationMode = Literal["paper", "rich"]
 ActionMode = Literal["relative", "absolute"]
+Method2Direction = Literal["chord", "heading"]
 
 
 class GameConfig(BaseModel):
@@ -32,7 +35,9 @@ class GameConfig(BaseModel):
     max_pitch_change: float = Field(math.pi / 4, gt=0, le=math.pi / 2)
     """Largest pitch change per step (radians)."""
     axis_length: float = Field(0.1, ge=0)
-    """``L``: the turn radius never goes below it."""
+    """``L``: the turn radius never goes below it, so a heading turns at most ``v / L`` per step,
+    measured as the true angle between the old and the new heading after the pitch clamp
+    (``envs.kinematics``). ``0`` leaves ``L`` out: the explicit yaw and pitch limits alone."""
     attacker_capture_radius: PositiveFloat | None = None
     """A captures T within this distance; ``None`` means ``v_attacker`` (the paper's)."""
     defender_capture_radius: PositiveFloat | None = None
@@ -40,13 +45,21 @@ class GameConfig(BaseModel):
     terminal_radius: PositiveFloat | None = None
     """T reaches the terminal within this distance; ``None`` means ``v_targeter``."""
     time_limit_factor: PositiveFloat = 2.0
-    """``Gamma = ceil(time_limit_factor * |T0 - ter| / v_targeter)`` steps."""
+    """``Gamma = ceil(time_limit_factor * |T0 - ter| / v_targeter)`` steps, the ceiling taken
+    with a tolerance of 1e-9 relative so float rounding of an exact multiple adds no step."""
     attacker_reward: Literal[1, 2, 3] = 2
     """Which of the paper's attacker reward methods (Eq. 7, 8, 9) the attacker receives."""
     sigma_a: float = Field(math.pi / 6, gt=0, lt=math.pi)
     """Acceptable angular offset of method 2 (radians); the paper gives no value."""
+    method2_direction: Method2Direction = "chord"
+    """A's "actual direction" in Eq. 8: ``chord`` of its motion this step (default; the
+    direction it really moved), or its ``heading`` at the end of the step (what it chose)."""
     overchase_gamma: float = Field(1.08, gt=0)
     """Base of the over-chasing penalty ``gamma ** C`` in method 3."""
+    method3_variant: Method3Variant = "as_printed"
+    """Eq. 9 ``as_printed`` (default: a positive first term in the over-chasing case,
+    ``gamma ** C`` not divided by Gamma), or ``corrected`` (both a cost scaled by 10 / Gamma);
+    see ``envs.rewards.attacker_method3``."""
     w_t1: PositiveFloat = 0.6
     """Weight of T's distance to the terminal in Eq. 10."""
     w_t2: PositiveFloat = 0.4

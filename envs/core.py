@@ -17,16 +17,23 @@ import numpy as np
 from envs import rewards
 from envs.agents import ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.config import GameConfig
-from envs.geometry import angle_between, first_contact, lead_intercept, norm
-from envs.kinematics import heading_vectors, turn, move, wrap_to_pi
+from envs.geometry import angle_between, intercept_time, lead_intercept, norm
+from envs.kinematics import Arcs, heading_vectors, limit_turn, turned, wrap_to_pi
 from envs.observations import global_state, observe
 from envs.scenarios import sample_positions
+from envs.sweep import first_contact_on_arcs
 
 NUM_AGENTS = 3
 ACTION_SIZE = 2
 # Tie order of events within one step: A's capture first (the team must catch A *before*
 # T is caught), then T at the terminal, then D's capture of A.
 EVENT_ORDER = np.array([Outcome.CAPTURED, Outcome.TERMINAL_REACHED, Outcome.ATTACKER_INTERCEPTED])
+# The two bodies of each event, in EVENT_ORDER; body 3 is the terminal, resting at the origin.
+TERMINAL_BODY = NUM_AGENTS
+EVENT_PAIRS = np.array([[TARGETER, ATTACKER], [TARGETER, TERMINAL_BODY], [ATTACKER, DEFENDER]])
+# Gamma = ceil(x) counts x within this relative distance above an integer as that integer:
+# 2 |T0| / v_T carries ~1e-16 relative rounding (2 * 8.255 / 0.13 = 127.00000000000001).
+TIME_LIMIT_ROUNDING = 1e-9
 RUNNING, TIMEOUT, CAPTURED = int(Outcome.RUNNING), int(Outcome.TIMEOUT), int(Outcome.CAPTURED)
 
 
@@ -61,6 +68,9 @@ class BatchedGame:
         self.targeter_velocity = np.zeros((num_games, 3))
         self.collision_distance = np.zeros(num_games)
         self.overchase_count = np.zeros(num_games, dtype=np.int64)
+        # The unit vectors of the headings after the last step, with the headings they belong
+        # to: the next step starts from them unless the headings were changed in between.
+        self._vectors_of: tuple[np.ndarray, np.ndarray] | None = None
 
     # ----------------------------------------------------------------- reset
     def reset(self, rng: np.random.Generator | None = None, positions: np.ndarray | None = None) -> None:
@@ -81,11 +91,11 @@ class BatchedGame:
             raise ValueError(f"starting positions must have shape ({len(games)}, 3, 3), got {positions.shape}")
         self.positions[games] = positions
         self.headings[games] = 0.0  # the paper's initial angles: yaw = pitch = 0
+        if self._vectors_of is not None:
+            self._vectors_of[0][games] = 0.0
+            self._vectors_of[1][games] = (1.0, 0.0, 0.0)  # heading_vectors of (0, 0), exactly
         self.steps[games] = 0
-        start_distance = norm(positions[:, TARGETER])
-        self.time_limit[games] = np.ceil(
-            self.config.time_limit_factor * start_distance / self.config.v_targeter
-        ).astype(np.int64).clip(min=1)
+        self.time_limit[games] = time_limit_steps(self.config, norm(positions[:, TARGETER]))
         self.outcome[games] = Outcome.RUNNING
         velocity = self.config.v_targeter * heading_vectors(self.headings[games, TARGETER])
         self.targeter_velocity[games] = velocity
@@ -110,14 +120,13 @@ class BatchedGame:
         return global_state(self.config, self.positions, self.headings, self.time_left)
 
     def _collision_distance(self, positions: np.ndarray, targeter_velocity: np.ndarray) -> np.ndarray:
-        """Method 3's ``lambda``: distance from A to its lead-intercept point on T."""
-        attacker = positions[:, ATTACKER]
-        aim = lead_intercept(attacker, self.config.v_attacker, positions[:, TARGETER], targeter_velocity)
-        return norm(aim - attacker)
+        """Method 3's ``lambda``: distance from A to its lead-intercept point on T (``v_A t*``)."""
+        speed = self.config.v_attacker
+        return speed * intercept_time(positions[:, ATTACKER], speed, positions[:, TARGETER], targeter_velocity)
 
     # ----------------------------------------------------------------- step
-    def commanded_headings(self, actions: np.ndarray) -> np.ndarray:
-        """Headings ``(N, 3, 2)`` at the end of the step: the actions within the turn limits."""
+    def commanded_turn(self, actions: np.ndarray) -> np.ndarray:
+        """The (yaw, pitch) change ``(N, 3, 2)`` the actions make within the turn limits."""
         actions = np.asarray(actions, dtype=np.float64)
         if actions.shape != (self.num_games, NUM_AGENTS, ACTION_SIZE):
             raise ValueError(
@@ -132,21 +141,22 @@ class BatchedGame:
         else:  # absolute: the desired heading, reached as far as the turn limits allow
             yaw_change = wrap_to_pi(actions[..., 0] - self.headings[..., 0])
             pitch_change = actions[..., 1] - self.headings[..., 1]
-        return turn(self.headings, yaw_change, pitch_change, cfg.max_yaw_change, cfg.max_pitch_change, self.max_turn)
+        return limit_turn(
+            self.headings, yaw_change, pitch_change, cfg.max_yaw_change, cfg.max_pitch_change, self.max_turn
+        )
 
     def step(self, actions: np.ndarray) -> StepResult:
         """Advance every running game by one step; finished games stay as they are."""
         cfg = self.config
-        headings = self.commanded_headings(actions)
+        change = self.commanded_turn(actions)
+        headings = turned(self.headings, change)
         running = self.active
         before = self.positions
-        after = move(before, self.headings, headings, self.speeds)
+        arcs = Arcs.of_turn(before, self.headings, headings, change, self.speeds, self._heading_vectors())
+        after = arcs.end
 
-        # Events, swept over the step (relative positions move along the chords): A on T,
-        # T on the terminal at the origin, D on A, in EVENT_ORDER.
-        pairs_before = np.stack((before[:, TARGETER] - before[:, ATTACKER], before[:, TARGETER], before[:, ATTACKER] - before[:, DEFENDER]), axis=1)
-        pairs_after = np.stack((after[:, TARGETER] - after[:, ATTACKER], after[:, TARGETER], after[:, ATTACKER] - after[:, DEFENDER]), axis=1)
-        contact = first_contact(pairs_before, pairs_after, self.event_radii)
+        # Events, swept along the arcs over the whole step, in EVENT_ORDER (envs.sweep).
+        contact = self._contact_fractions(arcs)
         first = np.argmin(contact, axis=1)  # argmin keeps the first on ties: EVENT_ORDER
         event_fraction = contact[np.arange(self.num_games), first]
         event = EVENT_ORDER[first]
@@ -156,7 +166,7 @@ class BatchedGame:
         outcome = np.where(running, outcome, self.outcome)
         event_fraction = np.where(np.isfinite(event_fraction), event_fraction, 1.0)
 
-        reward, attacker_rewards = self._rewards(before, after)
+        reward, attacker_rewards = self._rewards(before, after, headings)
         done = running & (outcome != RUNNING)
         if cfg.terminal_reward:
             attacker_won = (outcome == CAPTURED) | (outcome == TIMEOUT)
@@ -169,12 +179,24 @@ class BatchedGame:
         keep = ~running
         self.positions = np.where(keep[:, None, None], before, after)
         self.headings = np.where(keep[:, None, None], self.headings, headings)
+        vectors = np.where(keep[:, None, None], arcs.tangent, arcs.end_tangent)
+        self._vectors_of = (self.headings.copy(), vectors)
         self.steps = np.where(running, steps, self.steps)
         self.outcome = outcome
         return StepResult(reward, done, outcome, event_fraction, attacker_rewards)
 
-    def _rewards(self, before: np.ndarray, after: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Rewards of the step ``before -> after``; updates the attacker's memory.
+    def _heading_vectors(self) -> np.ndarray:
+        """Unit vectors of ``self.headings``: those of the last step if the headings are unchanged."""
+        if self._vectors_of is not None and np.array_equal(self._vectors_of[0], self.headings):
+            return self._vectors_of[1]
+        return heading_vectors(self.headings)
+
+    def _contact_fractions(self, arcs: Arcs) -> np.ndarray:
+        """``(N, 3)``: when in the step each event's pair first comes within its radius (``inf``: never)."""
+        return first_contact_on_arcs(arcs, EVENT_PAIRS, self.event_radii)
+
+    def _rewards(self, before: np.ndarray, after: np.ndarray, headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rewards of the step ``before -> after`` ending at ``headings``; updates the attacker's memory.
 
         Returns ``(rewards (N, 3 agents), attacker rewards (N, 3 methods))``: all three
         attacker methods are computed every step, so that a league can train attackers
@@ -193,11 +215,16 @@ class BatchedGame:
             norm(before[:, ATTACKER] - before[:, DEFENDER]), d_da, gamma_steps,
         )
         aim = lead_intercept(before[:, ATTACKER], cfg.v_attacker, before[:, TARGETER], self.targeter_velocity)
-        offset = angle_between(after[:, ATTACKER] - before[:, ATTACKER], aim - before[:, ATTACKER])
+        if cfg.method2_direction == "chord":
+            direction = after[:, ATTACKER] - before[:, ATTACKER]
+        else:  # "heading": where A points at the end of the step
+            direction = heading_vectors(headings[:, ATTACKER])
+        offset = angle_between(direction, aim - before[:, ATTACKER])
         method2 = rewards.attacker_method2(offset, cfg.sigma_a, gamma_steps)
         collision_distance = self._collision_distance(after, velocity)
         method3, count = rewards.attacker_method3(
-            self.collision_distance, collision_distance, self.overchase_count, cfg.overchase_gamma, gamma_steps
+            self.collision_distance, collision_distance, self.overchase_count, cfg.overchase_gamma, gamma_steps,
+            cfg.method3_variant,
         )
         self.collision_distance = np.where(running, collision_distance, self.collision_distance)
         self.overchase_count = np.where(running, count, self.overchase_count)
@@ -206,3 +233,13 @@ class BatchedGame:
         by_method = np.stack((method1, method2, method3), axis=1)
         r_t, r_d = rewards.team_rewards(norm(after[:, TARGETER]), d_at, d_da, cfg.w_t1, cfg.w_t2, gamma_steps)
         return np.stack((by_method[:, cfg.attacker_reward - 1], r_t, r_d), axis=1), by_method
+
+
+def time_limit_steps(config: GameConfig, start_distance: np.ndarray) -> np.ndarray:
+    """``Gamma = ceil(time_limit_factor * |T0 - ter| / v_T)`` steps (at least 1), per game.
+
+    A ratio within ``TIME_LIMIT_ROUNDING`` (relative) above an integer is that integer:
+    ``|T0| = 8.255`` gives 127 steps, not 128 from the last bit of a float division.
+    """
+    ratio = config.time_limit_factor * np.asarray(start_distance, dtype=np.float64) / config.v_targeter
+    return np.ceil(ratio * (1.0 - TIME_LIMIT_ROUNDING)).astype(np.int64).clip(min=1)

@@ -5,8 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 
+def dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Dot products over the last axis (``einsum``: 2-3x faster than ``(u * v).sum(-1)`` on 3-vectors)."""
+    return np.einsum("...i,...i->...", u, v)
+
+
 def norm(v: np.ndarray) -> np.ndarray:
-    return np.sqrt((v * v).sum(axis=-1))
+    return np.sqrt(dot(v, v))
 
 
 def unit(v: np.ndarray) -> np.ndarray:
@@ -17,22 +22,28 @@ def unit(v: np.ndarray) -> np.ndarray:
 
 def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Angle in ``[0, pi]`` between vectors ``(..., 3)``; 0 where either is zero."""
-    cos = np.clip((unit(u) * unit(v)).sum(axis=-1), -1.0, 1.0)
-    return np.arccos(cos)
+    lengths = np.sqrt(dot(u, u) * dot(v, v))
+    cos = dot(u, v) / np.where(lengths > 0, lengths, 1.0)
+    return np.arccos(np.clip(np.where(lengths > 0, cos, 1.0), -1.0, 1.0))
 
 
-def lead_intercept(chaser: np.ndarray, speed: float, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-    """Point where a chaser at ``speed`` meets a target moving at constant ``velocity``.
+def intercept_time(chaser: np.ndarray, speed: float, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """Time at which a chaser at ``speed`` meets a target moving at constant ``velocity``.
 
     Solves ``|r + u t| = s t`` with ``r = target - chaser``:
     ``t* = (r.u + sqrt((r.u)^2 + (s^2 - |u|^2) |r|^2)) / (s^2 - |u|^2)``, the one
-    positive root when ``s > |u|``. Returns ``target + velocity * t*``.
+    positive root when ``s > |u|``. The meeting point is ``speed * t*`` from the chaser.
     """
     r = target - chaser
-    ru = (r * velocity).sum(axis=-1)
-    margin = speed**2 - (velocity * velocity).sum(axis=-1)  # > 0 since the chaser is faster
-    t_star = (ru + np.sqrt(ru * ru + margin * (r * r).sum(axis=-1))) / margin
-    return target + velocity * t_star[..., None]
+    ru = dot(r, velocity)
+    margin = speed**2 - dot(velocity, velocity)  # > 0 since the chaser is faster
+    return (ru + np.sqrt(ru * ru + margin * dot(r, r))) / margin
+
+
+def lead_intercept(chaser: np.ndarray, speed: float, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """Point where a chaser at ``speed`` meets a target moving at constant ``velocity``:
+    ``target + velocity * t*`` (``intercept_time``)."""
+    return target + velocity * intercept_time(chaser, speed, target, velocity)[..., None]
 
 
 def first_contact(start: np.ndarray, end: np.ndarray, radius: float | np.ndarray) -> np.ndarray:
@@ -47,9 +58,9 @@ def first_contact(start: np.ndarray, end: np.ndarray, radius: float | np.ndarray
     Returns ``tau`` where contact happens, ``inf`` where it does not.
     """
     delta = end - start
-    a = (delta * delta).sum(axis=-1)
-    b = (start * delta).sum(axis=-1)
-    c = (start * start).sum(axis=-1) - radius * radius
+    a = dot(delta, delta)
+    b = dot(start, delta)
+    c = dot(start, start) - radius * radius
     disc = b * b - a * c
     with np.errstate(divide="ignore", invalid="ignore"):
         tau = (-b - np.sqrt(np.maximum(disc, 0.0))) / a

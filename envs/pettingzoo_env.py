@@ -45,12 +45,25 @@ class TargetDefenseEnv(ParallelEnv):
 
     ## Kinematics
     Constant speed, yaw change at most ``pi/2`` and pitch change at most ``pi/4`` per
-    step, turn radius never below ``L``; see ``envs.kinematics``.
+    step, turn radius never below ``L``: the true angle between the old and the new
+    heading (after the pitch clamp) is at most ``v / L``. Each body flies the circular
+    arc between its headings; see ``envs.kinematics``.
 
     ## Rewards
     A: one of the paper's methods 1, 2, 3 (``attacker_reward``); T and D: Eq. 10, 11 with
     the sign fixed (rewards are negated costs). Optional ``terminal_reward`` of +-1 to
     the winner / loser. See ``envs.rewards``.
+
+    ## Readings of the paper (``GameConfig`` options)
+    * ``axis_length``: ``0.1`` (default), ``L`` bounds the true heading change to ``v / L``;
+      ``0`` leaves ``L`` out (the explicit yaw and pitch limits alone).
+    * ``method2_direction``: ``chord`` (default), Eq. 8's "actual direction" of A is the
+      chord of its step; ``heading``, A's heading at the end of the step.
+    * ``method3_variant``: ``as_printed`` (default), Eq. 9 as printed; ``corrected``, the
+      over-chasing case costs ``(min(2 |dl|, 1) + gamma ** C) * 10 / Gamma``.
+
+    ``Gamma = ceil(2 |T0| / v_T)`` is taken with a 1e-9 relative tolerance, so an exact
+    multiple is not pushed one step up by float rounding.
 
     ## Starting State
     Positions drawn from the scenario set ``scenario`` (``envs.scenarios``) with the
@@ -67,9 +80,10 @@ class TargetDefenseEnv(ParallelEnv):
     | ``terminal_reached``   | team     | T within ``terminal_radius`` of ``(0, 0, 0)``      |
     | ``attacker_intercepted`` | team   | D within ``defender_capture_radius`` of A          |
 
-    Events are checked over the whole step (swept); the earliest counts, A's capture on
-    a tie. The time limit is a termination, not a truncation: it decides the game, and
-    the ``rich`` observation carries the time left.
+    Events are checked over the whole step, along the arcs the bodies fly, to a distance
+    tolerance of 1e-9 (``envs.sweep``); the earliest counts, A's capture on a tie. The
+    time limit is a termination, not a truncation: it decides the game, and the ``rich``
+    observation carries the time left.
 
     ## Arguments
     Any field of ``envs.config.GameConfig`` as a keyword, or ``config=GameConfig(...)``.

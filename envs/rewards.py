@@ -6,7 +6,11 @@ divides every per-step reward by it so that an episode's return stays bounded.
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
+
+Method3Variant = Literal["as_printed", "corrected"]
 
 # Eq. 7 and Eq. 9: the change in distance that counts as progress.
 METHOD1_THRESHOLD = 0.1
@@ -36,8 +40,12 @@ def attacker_method1(
 def attacker_method2(offset_angle: np.ndarray, sigma_a: float, gamma_steps: np.ndarray) -> np.ndarray:
     """Eq. 8: reward A for moving along its reference direction.
 
-    ``offset_angle`` is ``d sigma_A``, the angle between A's direction of motion this
-    step and the reference direction (A to T's lead-intercept point, see the core).
+    ``offset_angle`` is ``d sigma_A``, the angle between A's "actual direction" and the
+    reference direction (A to T's lead-intercept point, see the core). The paper does not
+    say which direction is actual; ``method2_direction`` picks the chord of A's motion
+    this step (default) or A's heading at the end of the step. They differ on a turn: the
+    chord points halfway through it, so an attacker that turns exactly onto the reference
+    direction is scored on half its turn by the chord and fully by the heading.
     With ``x = d sigma_A / sigma_a``:
 
     | case       | reward                        |
@@ -57,18 +65,24 @@ def attacker_method3(
     overchase_count: np.ndarray,
     overchase_gamma: float,
     gamma_steps: np.ndarray,
+    variant: Method3Variant = "as_printed",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Eq. 9: reward A for shrinking ``lambda``, its distance to the predicted collision point.
 
-    | case                                | reward                                               |
-    | ----------------------------------- | ---------------------------------------------------- |
-    | lambda_{t-1} - lambda_t >= 0.05     | min(2 abs(dl) + 1, 2) * 10 / Gamma                   |
-    | lambda_{t-1} - lambda_t <  0.05     | -max(-2 abs(dl), -1) * 10 / Gamma - gamma ** C       |
+    With ``dl = lambda_t - lambda_{t-1}``:
 
-    with ``dl = lambda_t - lambda_{t-1}``. The second row is the over-chasing case: its
-    counter ``C`` is incremented first, so the first such step costs ``gamma ** 1``.
-    The paper's sign is kept as written: ``-max(-2|dl|, -1)`` is a small *positive*
-    term, and the penalty comes from ``gamma ** C`` alone.
+    | case                            | reward                                                      |
+    | ------------------------------- | ----------------------------------------------------------- |
+    | lambda_{t-1} - lambda_t >= 0.05 | min(2 abs(dl) + 1, 2) * 10 / Gamma                          |
+    | lambda_{t-1} - lambda_t <  0.05 | ``as_printed``: -max(-2 abs(dl), -1) * 10 / Gamma - gamma ** C |
+    |                                 | ``corrected``: -(min(2 abs(dl), 1) + gamma ** C) * 10 / Gamma  |
+
+    The second row is the over-chasing case: its counter ``C`` is incremented first, so
+    the first such step costs ``gamma ** 1``. As printed, ``-max(-2|dl|, -1)`` is a
+    *positive* term that grows with ``|dl|`` (over-chasing harder pays more), and
+    ``gamma ** C`` alone is not divided by ``Gamma``: probably a sign slip and a missing
+    scale. ``corrected`` makes the first term a cost and scales ``gamma ** C`` like the
+    rest, by ``10 / Gamma``.
 
     Returns ``(reward, new_count)``.
     """
@@ -76,7 +90,10 @@ def attacker_method3(
     progress = (lambda_prev - lambda_now) >= METHOD3_THRESHOLD
     new_count = np.where(progress, overchase_count, overchase_count + 1)
     gain = np.minimum(2 * change + 1, 2) * 10.0 / gamma_steps
-    penalty = -np.maximum(-2 * change, -1) * 10.0 / gamma_steps - np.power(overchase_gamma, new_count)
+    if variant == "as_printed":
+        penalty = -np.maximum(-2 * change, -1) * 10.0 / gamma_steps - np.power(overchase_gamma, new_count)
+    else:
+        penalty = -(np.minimum(2 * change, 1) + np.power(overchase_gamma, new_count)) * 10.0 / gamma_steps
     return np.where(progress, gain, penalty), new_count
 
 

@@ -7,10 +7,13 @@ A player maps the batched game state to the direction it wants to fly, ``(N, 3)`
 | -------- | ------------------------- | ---------------------------------------------------------- |
 | attacker | ``pure_pursuit``          | fly at T                                                   |
 | attacker | ``lead_intercept``        | fly at the point where T, at its current velocity, is met  |
-| attacker | ``proportional_navigation`` | turn the velocity at N times the line-of-sight rate       |
+| attacker | ``proportional_navigation`` | turn the velocity at N times the line-of-sight rate;     |
+|          |                           | pure pursuit while T is behind A (no line-of-sight rate    |
+|          |                           | turns A around then)                                       |
 | targeter | ``straight``              | fly at the terminal                                        |
-| targeter | ``avoid_attacker``        | fly at the terminal if it lies in T's Apollonius ball      |
-|          |                           | against A, else hide behind D (D between A and T)          |
+| targeter | ``avoid_attacker``        | fly at the terminal if T gets into the terminal sphere     |
+|          |                           | before A can get within its capture radius of T (the       |
+|          |                           | Apollonius ball with both radii), else hide behind D       |
 | defender | ``pure_pursuit``          | fly at A                                                   |
 | defender | ``bisector_intercept``    | fly to where A's straight path to T crosses the bisector   |
 |          |                           | plane of A and D (D gets there no later than A)            |
@@ -26,7 +29,7 @@ import numpy as np
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER
 from envs.config import GameConfig
 from envs.core import BatchedGame
-from envs.geometry import apollonius_ball, lead_intercept, norm, unit
+from envs.geometry import lead_intercept, norm, unit
 from envs.kinematics import heading_vectors, headings_of, wrap_to_pi
 from envs.observations import decode_global_state
 
@@ -58,20 +61,39 @@ def attacker_proportional_navigation(game: BatchedGame) -> np.ndarray:
     los = game.positions[:, TARGETER] - game.positions[:, ATTACKER]
     closing = velocity[:, TARGETER] - velocity[:, ATTACKER]
     los_rate = np.cross(los, closing) / np.sum(los * los, axis=1, keepdims=True)
-    return velocity[:, ATTACKER] + NAVIGATION_GAIN * np.cross(los_rate, velocity[:, ATTACKER])
+    navigation = velocity[:, ATTACKER] + NAVIGATION_GAIN * np.cross(los_rate, velocity[:, ATTACKER])
+    # With T behind A the line of sight may not turn at all (T dead astern: rate 0), and
+    # navigation would fly A away from T: pursue instead.
+    behind = np.sum(los * velocity[:, ATTACKER], axis=1) < 0
+    return np.where(behind[:, None], los, navigation)
 
 
 def targeter_straight(game: BatchedGame) -> np.ndarray:
     return -game.positions[:, TARGETER]
 
 
-def targeter_avoid_attacker(game: BatchedGame) -> np.ndarray:
+def targeter_is_safe(game: BatchedGame) -> np.ndarray:
+    """``(N,)``: T flying straight at the terminal gets into its sphere before A can capture it.
+
+    T aims at ``E``, the nearest point of the terminal sphere. A can be within its capture
+    radius ``r`` of a point ``P`` of T's path no sooner than ``(|P - A| - r) / v_A``, T is
+    there at ``|P - T| / v_T``; the difference ``v_T (|P - A| - r) - v_A |P - T|`` only
+    shrinks along the path (its slope is at most ``v_T - v_A < 0``), so T is safe when it
+    is positive at ``E``: the Apollonius ball of T against A with both radii. Turn limits
+    only slow A, so a safe T flying straight is never captured.
+    """
     cfg = game.config
+    a, t = game.positions[:, ATTACKER], game.positions[:, TARGETER]
+    to_terminal = norm(t)
+    goal = t * (cfg.terminal_sphere_radius / np.maximum(to_terminal, cfg.terminal_sphere_radius))[:, None]
+    margin = cfg.v_targeter * (norm(goal - a) - cfg.attacker_radius) - cfg.v_attacker * norm(goal - t)
+    return (to_terminal <= cfg.terminal_sphere_radius) | (margin > 0)
+
+
+def targeter_avoid_attacker(game: BatchedGame) -> np.ndarray:
     a, t, d = game.positions[:, ATTACKER], game.positions[:, TARGETER], game.positions[:, DEFENDER]
-    centre, radius = apollonius_ball(t, a, cfg.v_targeter / cfg.v_attacker)
-    safe = norm(centre) < radius  # the terminal (origin) lies in T's Apollonius ball
     shelter = d + SHELTER_DISTANCE * unit(d - a)
-    return np.where(safe[:, None], -t, shelter - t)
+    return np.where(targeter_is_safe(game)[:, None], -t, shelter - t)
 
 
 def defender_pure_pursuit(game: BatchedGame) -> np.ndarray:

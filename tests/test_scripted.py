@@ -3,13 +3,21 @@
 import numpy as np
 import pytest
 
-from envs.agents import ATTACKER, DEFENDER, TARGETER
+from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.config import GameConfig
 from envs.core import BatchedGame
 from envs.geometry import apollonius_ball, lead_intercept, norm
+from envs.kinematics import headings_of
 from envs.match import play, scripted_players
 from envs.scenarios import evaluation_scenarios
-from envs.scripted import PAPER_TEAM, PLAYERS, ScriptedPlayer, defender_bisector_intercept, targeter_avoid_attacker
+from envs.scripted import (
+    PAPER_TEAM,
+    PLAYERS,
+    ScriptedPlayer,
+    defender_bisector_intercept,
+    targeter_avoid_attacker,
+    targeter_is_safe,
+)
 
 
 def test_lead_intercept_meets_a_constant_velocity_target():
@@ -54,6 +62,57 @@ def test_avoiding_targeter_goes_straight_when_safe_and_hides_otherwise():
     direction = targeter_avoid_attacker(game)
     np.testing.assert_allclose(direction[0], -game.positions[0, TARGETER])
     assert direction[1, 1] > 0  # toward D's side, away from A
+
+
+def straight_line_starts(n, seed=0):
+    """T 1 to 3 from the terminal heading straight at it, A 0.5 to 3 from T heading at T, D far away."""
+    rng = np.random.default_rng(seed)
+
+    def directions():
+        v = rng.normal(size=(n, 3))
+        return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+    t = directions() * rng.uniform(1.0, 3.0, (n, 1))
+    a = t + directions() * rng.uniform(0.5, 3.0, (n, 1))
+    d = t + directions() * 40.0
+    game = BatchedGame(GameConfig(), n)
+    game.reset(positions=np.stack((a, t, d), axis=1))
+    game.headings = np.stack((headings_of(t - a), headings_of(-t), headings_of(a - d)), axis=1)
+    return game
+
+
+def play_on(game, players):
+    while game.active.any():
+        game.step(np.stack([players[agent].act(game) for agent in AGENTS], axis=1))
+    return game.outcome
+
+
+@pytest.mark.parametrize("attacker", sorted(PLAYERS["attacker"]))
+def test_a_targeter_called_safe_is_never_captured(attacker):
+    game = straight_line_starts(500)
+    safe = targeter_is_safe(game)
+    assert safe.sum() > 150
+    outcome = play_on(game, scripted_players(attacker, "avoid_attacker", "pure_pursuit"))
+    assert not np.any(safe & (outcome == Outcome.CAPTURED))
+
+
+def test_the_apollonius_ball_without_the_capture_radius_is_not_safe():
+    # The terminal inside T's Apollonius ball (radii left out) is not enough: flying straight
+    # against the lead-intercept attacker (the best reply to a straight flight), some are caught.
+    game = straight_line_starts(500)
+    a, t = game.positions[:, ATTACKER], game.positions[:, TARGETER]
+    centre, radius = apollonius_ball(t, a, 0.13 / 0.18)
+    ball_safe = norm(centre) < radius
+    outcome = play_on(game, scripted_players("lead_intercept", "straight", "pure_pursuit"))
+    assert np.sum(ball_safe & (outcome == Outcome.CAPTURED)) > 5
+
+
+def test_proportional_navigation_turns_around_for_a_target_behind():
+    # T dead astern of A on A's own line of flight: the line of sight does not turn, so
+    # navigation alone would fly A away and let T through to the terminal.
+    positions = np.array([[[-1.5, 0.0, 0.0], [-3.0, 0.0, 0.0], [0.0, 30.0, 0.0]]])
+    result = play(GameConfig(), scripted_players("proportional_navigation", "straight", "pure_pursuit"), positions)
+    assert result.outcome[0] == Outcome.CAPTURED
 
 
 @pytest.mark.parametrize("agent, names", sorted(PLAYERS.items()))
