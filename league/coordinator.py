@@ -197,7 +197,7 @@ class Coordinator:
                 self.store.set_player_steps(learner.id, st.learner_env_steps.get(learner.name, 0))
             for r in evaluation:
                 self.store.record_evaluation(st.iteration, r.outcome_rows())
-            self.store.record_ratings(st.iteration, league_ratings(self.store.match_rows(), [p.id for p in self.store.players()]))
+            self.store.record_ratings(st.iteration, league_ratings(self.store.counted_results(), [p.id for p in self.store.players()]))
             self.store.record_iteration(
                 st.iteration,
                 phase=phase.index,

@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     with store.transaction():
         for r in results:
             store.record_evaluation(iteration, r.outcome_rows())
-        store.replace_ratings(iteration, league_ratings(store.match_rows(), [p.id for p in store.players()]))
+        store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
     print(f"{episodes} fixed games of scenario set `{run.game.scenario}` per pair\n")
     print(format_table(results))
     print(method_table(results))

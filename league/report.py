@@ -35,7 +35,7 @@ from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
-from league.payoff import ATTACKER_WINS, aggregate
+from league.payoff import ATTACKER_WINS, aggregate, league_ratings
 from league.players import Player
 from league.store import DB_NAME, LeagueStore
 
@@ -75,7 +75,8 @@ class ReportData:
     attackers: list[Player]  # frozen, rows of the payoff matrix
     teams: list[Player]  # frozen, columns
     payoff: dict[tuple[int, int], tuple[int, int]]  # (attacker id, team id) -> (attacker wins, games)
-    ratings: dict[int, tuple[list[int], list[float]]]  # player id -> (iterations, ratings)
+    ratings: dict[int, tuple[list[int], list[float]]]  # player id -> (iterations, ratings) over training
+    final_ratings: dict[int, float]  # fitted now to every game counted once; players without games have none
     games: dict[int, int]  # player id -> games in training and newest evaluations
     win_rates: Series
     returns: Series
@@ -96,7 +97,7 @@ def evaluation_payoff(store: LeagueStore, run: RunConfig, run_dir: Path, needed:
 
 
 def player_games(store: LeagueStore, payoff: dict[tuple[int, int], tuple[int, int]]) -> dict[int, int]:
-    """Games per player: training episodes plus the newest evaluation of each pair."""
+    """Games per player: training episodes plus the newest evaluation of each pair (gaps filled now)."""
     games: dict[int, int] = defaultdict(int)
     for table in (aggregate(store.match_rows("training"), ATTACKER_WINS), payoff):
         for (attacker, team), (_, n) in table.items():
@@ -192,6 +193,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
     )
     return ReportData(
         run=run, players=players, attackers=attackers, teams=teams, payoff=payoff, ratings=dict(ratings),
+        final_ratings=league_ratings(store.counted_results(), [p.id for p in players]),
         games=player_games(store, payoff), win_rates=learner_win_rates(store, players), returns=dict(returns),
         phases=phases_of(iterations), episodes=episodes, missing_episodes=missing, summary=summary,
     )
@@ -214,11 +216,14 @@ def table_one_rows(data: ReportData) -> list[list[str]]:
 TABLE_ONE_HEADER = ["method", "attacker", "win rate vs the paper's scripted team", "95% interval", "games",
                     "paper (100 rounds)"]
 RATINGS_HEADER = ["player", "side", "kind", "rating", "games"]
+RATINGS_NOTE = ("Every player's rating, fitted to every game counted once: the training episodes and each pair's "
+                "newest evaluation (the same fixed games played again are one measurement). A player without "
+                "games has no rating.")
 
 
 def rating_rows(data: ReportData) -> list[list[str]]:
-    """Every player's newest rating, best first; players without games have none."""
-    newest = {pid: values[-1] for pid, (_, values) in data.ratings.items() if values}
+    """Every player's rating fitted to every game counted once, best first; players without games have none."""
+    newest = data.final_ratings
     by_rating = sorted(data.players, key=lambda p: (p.id not in newest, -newest.get(p.id, 0.0)))
     return [[p.name, p.side, p.kind, f"{newest[p.id]:.0f}" if p.id in newest else "no games", str(data.games.get(p.id, 0))]
             for p in by_rating]
@@ -362,6 +367,7 @@ def build_report(run_dir: Path) -> Path:
         markdown_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "## Payoff matrix", "", "![payoff](payoff.png)", "",
         "## Ratings", "", "![ratings](ratings.png)", "",
+        RATINGS_NOTE, "",
         markdown_table(RATINGS_HEADER, rating_rows(data)),
         "## Learner win rates in training", "", "![win rates](win_rates.png)", "",
         "## Episode returns", "", "![returns](returns.png)", "",

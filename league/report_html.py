@@ -19,6 +19,7 @@ from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.render import COLOURS
 from league.report import (
     RATINGS_HEADER,
+    RATINGS_NOTE,
     SIDE_COLOURS,
     TABLE_ONE_HEADER,
     Episode,
@@ -198,7 +199,7 @@ def write(data: "ReportData", out: Path) -> None:
         "ordering, not the values.</p>",
         html_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "<h2>Payoff matrix</h2>", figure_div(payoff_figure(data), "payoff"),
-        "<h2>Ratings</h2>", figure_div(ratings_figure(data), "ratings"), html_table(RATINGS_HEADER, rating_rows(data)),
+        "<h2>Ratings</h2>", figure_div(ratings_figure(data), "ratings"), f"<p>{html.escape(RATINGS_NOTE)}</p>", html_table(RATINGS_HEADER, rating_rows(data)),
         "<h2>Learner win rates in training</h2>",
         figure_div(line_figure(data.win_rates, data.phases, "win rate in training", "learner win rates (per iteration)"),
                    "win-rates"),

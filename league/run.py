@@ -142,7 +142,7 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
     with store.transaction():
         for r in results:
             store.record_evaluation(iteration, r.outcome_rows())
-        store.replace_ratings(iteration, league_ratings(store.match_rows(), [p.id for p in store.players()]))
+        store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
         store.set_meta("evaluated_iteration", iteration)
     out = coordinator.run_dir / EVALUATION_FILE
     out.write_text(

@@ -20,9 +20,9 @@ ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 
 
 def league_table(store: LeagueStore, source: str | None = None) -> Table:
-    """Players with rating, games and win rate over all their matches of ``source``."""
+    """Players with rating, games and win rate over their games of ``source``, each game counted once."""
     ratings = store.latest_ratings()
-    payoff = aggregate(store.match_rows(source), ATTACKER_WINS)
+    payoff = aggregate(store.counted_results(source), ATTACKER_WINS)
     table = Table(title="league", caption="rating: none for a player without games (nothing to fit)")
     for column in ("player", "side", "kind", "reward", "parent", "env steps", "rating", "games", "win rate"):
         table.add_column(column, justify="right" if column in ("env steps", "rating", "games", "win rate") else "left")

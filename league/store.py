@@ -168,12 +168,11 @@ class LeagueStore:
             "WHERE m.source = 'evaluation' GROUP BY m.attacker, m.team, m.outcome"
         ).fetchall()
 
-    def evaluation_history(self) -> list[tuple[int, int, int, str, int]]:
-        """``(iteration, attacker, team, outcome, count)`` of every evaluation, oldest first."""
-        return self.db.execute(
-            "SELECT iteration, attacker, team, outcome, SUM(count) FROM matches WHERE source = 'evaluation' "
-            "GROUP BY iteration, attacker, team, outcome ORDER BY iteration"
-        ).fetchall()
+    def counted_results(self, source: str | None = None) -> list[tuple[int, int, str, int]]:
+        """``(attacker, team, outcome, count)`` with every game counted once: the training
+        episodes and each pair's newest evaluation (``source`` picks one of the two)."""
+        training = self.match_rows("training") if source in (None, "training") else []
+        return training + (self.newest_evaluation_rows() if source in (None, "evaluation") else [])
 
     def training_rows_by_iteration(self) -> list[tuple[int, int, int, str, int]]:
         """``(iteration, attacker, team, outcome, count)`` of the training episodes, oldest first."""
