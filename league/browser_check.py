@@ -1,9 +1,10 @@
 """Open a report in headless Chromium: ``python -m league.browser_check DIR/report/index.html``.
 
-Loads the page, collects console errors and uncaught exceptions, counts the plotly
-figures and the WebGL canvases of the 3D scenes, and saves a screenshot of the first
-trajectory scene (``--screenshot``). Exit code 1 when the page shows an error or a 3D
-scene is missing, 2 when no Chromium is installed (Debian: ``apt-get install chromium``).
+Loads the page, collects console errors, uncaught exceptions and every URL it requests
+besides itself (a self-contained page requests none), counts the plotly figures and the
+WebGL canvases of the 3D scenes, and saves a screenshot of the first trajectory scene
+(``--screenshot``). Exit code 1 when the page shows an error, fetches anything or lacks
+a 3D scene, 2 when no Chromium is installed (Debian: ``apt-get install chromium``).
 
 Chromium is driven through the DevTools protocol over a pipe (``--remote-debugging-pipe``:
 JSON messages ending in NUL on file descriptors 3 and 4), so nothing but the standard
@@ -45,6 +46,7 @@ def find_chromium() -> str | None:
 @dataclass
 class PageCheck:
     errors: list[str] = field(default_factory=list)  # console errors and uncaught exceptions
+    fetched: list[str] = field(default_factory=list)  # URLs requested besides the page (offline: none)
     figures: int = 0  # rendered plotly figures
     scenes: int = 0  # 3D scenes with a WebGL canvas
     screenshot: bytes = b""  # PNG of the first trajectory scene
@@ -125,6 +127,11 @@ def errors_in(events: list[dict[str, Any]]) -> list[str]:
     return errors
 
 
+def fetched_urls(events: list[dict[str, Any]], page_url: str) -> list[str]:
+    urls = (e["params"]["request"]["url"] for e in events if e.get("method") == "Network.requestWillBeSent")
+    return [url for url in urls if url != page_url and not url.startswith(("data:", "blob:", "about:"))]
+
+
 COUNT_SCRIPT = """JSON.stringify({
   figures: document.querySelectorAll('.js-plotly-plot').length,
   scenes: Array.from(document.querySelectorAll('.js-plotly-plot'))
@@ -146,7 +153,7 @@ def check_page(page: Path, chromium: str, settle_seconds: float = 3.0, timeout: 
         try:
             target = tools.call("Target.createTarget", url="about:blank")["targetId"]
             session = tools.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
-            for domain in ("Runtime", "Log", "Page"):
+            for domain in ("Runtime", "Log", "Page", "Network"):
                 tools.call(f"{domain}.enable", session)
             tools.call("Emulation.setDeviceMetricsOverride", session, width=WIDTH, height=HEIGHT,
                        deviceScaleFactor=1, mobile=False)
@@ -163,6 +170,7 @@ def check_page(page: Path, chromium: str, settle_seconds: float = 3.0, timeout: 
                 shot = tools.call("Page.captureScreenshot", session, format="png", clip=clip, captureBeyondViewport=True)
                 check.screenshot = base64.b64decode(shot["data"])
             check.errors = errors_in(tools.events)
+            check.fetched = fetched_urls(tools.events, page.resolve().as_uri())
             return check
         finally:
             tools.close()
@@ -184,10 +192,13 @@ def main(argv: list[str] | None = None) -> int:
     check = check_page(args.page, chromium)
     if args.screenshot and check.screenshot:
         args.screenshot.write_bytes(check.screenshot)
-    print(f"{check.figures} figures, {check.scenes} 3D scenes, {len(check.errors)} console errors")
+    print(f"{check.figures} figures, {check.scenes} 3D scenes, {len(check.errors)} console errors, "
+          f"{len(check.fetched)} requests besides the page")
     for error in check.errors:
         print(f"console error: {error}")
-    return 0 if not check.errors and check.scenes > 0 else 1
+    for url in check.fetched:
+        print(f"requested: {url}")
+    return 0 if not check.errors and not check.fetched and check.scenes > 0 else 1
 
 
 if __name__ == "__main__":

@@ -171,19 +171,21 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
             returns[module][0].append(row["iteration"])
             returns[module][1].append(value)
 
-    episodes, missing = [], []
-    paper_team = next((t for t in teams if t.kind == "scripted" and (t.scripted_targeter, t.scripted_defender) == PAPER_TEAM),
-                      next((t for t in teams if t.kind == "scripted"), None))
+    # Each side's newest snapshot against a scripted opponent (the paper's team when there is one).
+    scripted_teams = [t for t in teams if t.kind == "scripted"]
+    paper_team = next((t for t in scripted_teams if (t.scripted_targeter, t.scripted_defender) == PAPER_TEAM),
+                      scripted_teams[0] if scripted_teams else None)
     scripted_attacker = next((a for a in attackers if a.kind == "scripted"), None)
-    newest_attacker = [a for a in attackers if a.kind == "snapshot"][-1:]
-    newest_team = [t for t in teams if t.kind == "snapshot"][-1:]
-    for side, pair in (("attacker", (newest_attacker[:1] + [paper_team])), ("team", [scripted_attacker] + newest_team[:1])):
-        if len(pair) == 2 and None not in pair:
-            shown, why = record_episodes(run, run_dir, pair[0], pair[1], side)
-            episodes += shown
-            missing += why
-        else:
+    newest_attacker = next((a for a in reversed(attackers) if a.kind == "snapshot"), None)
+    newest_team = next((t for t in reversed(teams) if t.kind == "snapshot"), None)
+    episodes, missing = [], []
+    for side, attacker, team in (("attacker", newest_attacker, paper_team), ("team", scripted_attacker, newest_team)):
+        if attacker is None or team is None:
             missing.append(f"No {side} trajectories: the league has no {side} snapshot or no scripted opponent for it.")
+            continue
+        shown, why = record_episodes(run, run_dir, attacker, team, side)
+        episodes += shown
+        missing += why
 
     last = store.last_iteration() or {}
     summary = (
@@ -310,7 +312,7 @@ def line_plot(series: Series, phases: list[Phase], ylabel: str, title: str, out:
 
 def ratings_plot(data: ReportData, out: Path) -> None:
     """One panel per side: learners and scripted players named, snapshots as thin grey lines (see the table)."""
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5), sharey=True)
     colours = plt.get_cmap("tab10")
     for ax, side in zip(axes, ("attacker", "team")):
         shade_phases(ax, data.phases)
@@ -328,7 +330,7 @@ def ratings_plot(data: ReportData, out: Path) -> None:
         ax.plot([], [], color="grey", lw=0.6, label="snapshots (table below)")
         ax.set_title(f"{side} side")
         ax.set_xlabel("iteration")
-        ax.legend(fontsize=7, loc="best")
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
     axes[0].set_ylabel("Elo rating")
     fig.suptitle("ratings over training (fitted to every result so far)")
     fig.tight_layout()

@@ -68,4 +68,4 @@ def test_report_holds_the_expected_files(tiny_run):
     assert list(report.glob("trajectory_attacker_*.png")) and list(report.glob("trajectory_team_*.png"))
     page = (report / "index.html").read_text()
     assert "Table 1 analogue" in page and "attacker-m2-v1" in page
-    assert "<script src" not in page and "https://cdn" not in page  # self-contained: opens offline
+    assert "<script src" not in page and "<link" not in page  # self-contained: opens offline

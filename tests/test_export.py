@@ -117,14 +117,14 @@ class ExportedAgent:
 
 
 def test_exported_policy_plays_the_same_episodes_as_in_the_league(run_dir, tmp_path):
-    out = tmp_path / "attacker.pt"
-    assert export_main(["--run-dir", str(run_dir), "--player", "latest-attacker", "--out", str(out)]) == 0
+    out = tmp_path / "attacker.pt2"
+    assert export_main(["--run-dir", str(run_dir), "--player", "latest-attacker", "--format", "export", "--out", str(out)]) == 0
     module = load_module(run_dir / "players" / "attacker-m2-v1")
     games = evaluation_scenarios("default", 300)
     inside = scripted_players("lead_intercept", "avoid_attacker", "pure_pursuit")
     inside["attacker"] = LearnedAgent(module, "attacker")
     exported = dict(inside)
-    exported["attacker"] = ExportedAgent(torch.jit.load(str(out)), "attacker")
+    exported["attacker"] = ExportedAgent(torch.export.load(str(out)).module(), "attacker")
     a, b = play(GameConfig(), inside, games), play(GameConfig(), exported, games)
     np.testing.assert_array_equal(a.outcome, b.outcome)
     np.testing.assert_array_equal(a.steps, b.steps)

@@ -87,7 +87,8 @@ def report_dir(tiny_run):
 
 def test_report_page_is_self_contained_with_a_3d_scene_per_shown_game(report_dir):
     page = (report_dir / "index.html").read_text()
-    assert "<script src" not in page and "https://cdn" not in page
+    assert "<script src" not in page and "<link" not in page  # nothing to fetch (the browser check also watches)
+    assert "plotly.js v" in page  # the library itself is inside
     shown = sorted(p.name for p in report_dir.glob("trajectory_*.png"))
     scenes = re.findall(r"id=\"(trajectory-\w+-\w+)\"", page)
     assert sorted(s.replace("-", "_") + ".png" for s in scenes) == shown
@@ -113,6 +114,7 @@ def test_report_page_opens_in_a_browser_without_errors_and_draws_the_3d_scene(re
         pytest.skip("no Chromium installed (Debian: apt-get install chromium): the browser check cannot run")
     check = check_page(report_dir / "index.html", chromium)
     assert check.errors == []
+    assert check.fetched == []  # opens offline: nothing but the file itself is requested
     scenes = len(list(report_dir.glob("trajectory_*.png")))
     assert check.scenes == scenes > 0
     assert check.figures == scenes + 4  # payoff, ratings, win rates, returns
@@ -130,3 +132,16 @@ def test_browser_check_reports_console_errors(tmp_path):
     page.write_text("<html><body><script>console.error('bad thing'); missingFunction();</script></body></html>")
     check = check_page(page, chromium, settle_seconds=0.5)
     assert any("bad thing" in e for e in check.errors) and any("missingFunction" in e for e in check.errors)
+
+
+def test_status_of_a_finished_run_says_finished_with_its_average_speed(tiny_run):
+    from league.status import run_line
+
+    store = LeagueStore(tiny_run)
+    try:
+        last, seconds = store.last_iteration(), store.training_seconds()
+        line = run_line(store)
+    finally:
+        store.close()
+    assert line.startswith(f"finished: iteration {last['iteration']}, {last['env_steps']} env steps")
+    assert line.endswith(f"{last['env_steps'] / seconds:.0f} env steps/s on average")
