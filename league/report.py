@@ -342,7 +342,10 @@ def ratings_plot(data: ReportData, out: Path) -> None:
 def build_report(run_dir: Path) -> Path:
     from league import report_html
 
+    import torch
+
     run = saved_run_config(run_dir)
+    torch.set_num_threads(run.resources.threads_for(1))  # the games played here run torch in this process
     store = LeagueStore(run_dir)
     try:
         data = gather(store, run, run_dir)
