@@ -31,7 +31,7 @@ def plot_episode(trajectory: np.ndarray, outcome: Outcome, config: GameConfig, t
     for agent in (ATTACKER, TARGETER, DEFENDER):
         path = trajectory[:, agent]
         ax.plot(*path.T, color=COLOURS[agent], label=AGENTS[agent])
-        ax.scatter(*path[0], color=COLOURS[agent], marker="o", s=40)
+        ax.scatter(*path[0], color=COLOURS[agent], marker="o", s=40, label=f"{AGENTS[agent]} start")
     u, v = np.mgrid[0 : 2 * np.pi : 20j, 0 : np.pi : 10j]
     r = config.terminal_sphere_radius
     ax.plot_wireframe(r * np.cos(u) * np.sin(v), r * np.sin(u) * np.sin(v), r * np.cos(v), color="grey", lw=0.5)

@@ -206,10 +206,15 @@ def load_config(name: str, overrides: list[str] | None = None) -> RunConfig:
     try:
         return RunConfig.model_validate(data)
     except ValidationError as err:
-        problems = "; ".join(
-            f"{'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}" for e in err.errors()
-        )
-        raise ConfigError(f"{path}: {problems}") from err
+        overridden = [item.partition("=")[0].strip() for item in overrides or []]
+        problems = []
+        for e in err.errors():
+            key = ".".join(str(p) for p in e["loc"])
+            # A key given with --set is reported as coming from --set, not from the file.
+            source = next((f"--set {item}" for item, k in zip(overrides or [], overridden)
+                           if key == k or key.startswith(k + ".")), str(path))
+            problems.append(f"{source}: {key or '(top level)'}: {e['msg']}")
+        raise ConfigError("; ".join(problems)) from err
 
 
 def saved_run_config(run_dir: Path) -> RunConfig:

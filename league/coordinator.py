@@ -28,10 +28,10 @@ from envs.agents import Outcome
 from league import rllib_bridge as bridge
 from league.config import RunConfig
 from league.evaluation import EvaluationPool, PairResult, evaluate_pairs
-from league.payoff import aggregate, elo_ratings, win_rate
+from league.payoff import aggregate, league_ratings, win_rate
 from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
-from league.progress import ProgressReporter
+from league.progress import IterationTiming, ProgressReporter
 from league.store import LeagueStore
 
 ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
@@ -156,6 +156,7 @@ class Coordinator:
         started = time.perf_counter()
         result = self.algo.train()
         seconds = time.perf_counter() - started
+        learning = bridge.take_learning_seconds(self.algo)
         self.report_runner_health()
 
         st, phase = self.state, self.state.phase
@@ -177,7 +178,10 @@ class Coordinator:
             st.learner_env_steps[learner.name] = st.learner_env_steps.get(learner.name, 0) + steps // len(learners)
 
         every = self.run.evaluation.every_iterations
+        started = time.perf_counter()
         evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
+        timing = IterationTiming(sampling=seconds - learning, learning=learning, evaluation=time.perf_counter() - started)
+        trained_phase = replace(phase)  # this iteration's phase, before a phase change
         snapshots = []
         if self.phase_finished():
             snapshots = [self.snapshot(learner) for learner in self.learners(phase.side)]
@@ -191,11 +195,9 @@ class Coordinator:
                 self.store.add_player(st.iteration, **columns)
             for learner in self.store.players(kind="learner"):
                 self.store.set_player_steps(learner.id, st.learner_env_steps.get(learner.name, 0))
-            ratings = elo_ratings(
-                [(a, t, w, n) for (a, t), (w, n) in aggregate(self.store.match_rows(), ATTACKER_WINS).items()],
-                [p.id for p in self.store.players()],
-            )
-            self.store.record_ratings(st.iteration, ratings)
+            for r in evaluation:
+                self.store.record_evaluation(st.iteration, r.outcome_rows())
+            self.store.record_ratings(st.iteration, league_ratings(self.store.counted_results(), [p.id for p in self.store.players()]))
             self.store.record_iteration(
                 st.iteration,
                 phase=phase.index,
@@ -206,14 +208,13 @@ class Coordinator:
                 wall_seconds=seconds,
                 returns=json.dumps(bridge.module_returns(result, [p.name for p in self.store.players(kind="learner")])),
             )
-            if evaluation:
-                for r in evaluation:
-                    self.store.record_matches(st.iteration, "evaluation", r.outcome_rows())
             st.rng = self.rng.bit_generator.state
             if checkpoint is not None:
                 self.store.record_checkpoint(st.iteration, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(st)))
         self.prune_checkpoints()
-        progress.iteration(self, result, weights, steps / seconds, [self.store_name(c) for c in snapshots])
+        progress.iteration(
+            self, result, weights, trained_phase, steps, timing, [self.store_name(c) for c in snapshots], evaluation
+        )
 
     def report_runner_health(self) -> None:
         """Say when remote env runners are lost (a node died) or come back."""

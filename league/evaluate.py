@@ -2,8 +2,10 @@
 
 Plays every chosen attacker against every chosen team on the fixed evaluation games
 (frozen players only: snapshots and scripted players), prints win rates with 95% Wilson
-intervals and outcome counts, then the table per attacker reward method. Results are
-added to the league database as evaluation matches of the run's last iteration.
+intervals and outcome counts, then the table per attacker reward method. Results go to
+the league database as evaluation matches of the run's last iteration, replacing earlier
+evaluations of the same pairs (the same fixed games again are one measurement, not new
+evidence), and the ratings of that iteration are refitted with them.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import torch
 
 from league.config import saved_run_config
 from league.evaluation import PairResult, evaluate_pairs, format_table, wilson_interval
+from league.payoff import league_ratings
 from league.players import Player
 from league.store import DB_NAME, LeagueStore
 
@@ -106,9 +109,11 @@ def main(argv: list[str] | None = None) -> int:
 
             ray.shutdown()
     last = store.last_iteration()
+    iteration = last["iteration"] if last else 0
     with store.transaction():
         for r in results:
-            store.record_matches(last["iteration"] if last else 0, "evaluation", r.outcome_rows())
+            store.record_evaluation(iteration, r.outcome_rows())
+        store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
     print(f"{episodes} fixed games of scenario set `{run.game.scenario}` per pair\n")
     print(format_table(results))
     print(method_table(results))

@@ -1,4 +1,4 @@
-"""Export a league player's policy for use without Ray: TorchScript or ONNX.
+"""Export a league player's policy for use without Ray: torch.export, TorchScript or ONNX.
 
 ``python -m league.export --run-dir DIR --player latest-attacker --format torchscript --out attacker.pt``
 
@@ -9,8 +9,13 @@ Gaussian policy, exactly what the league plays in evaluation. Nothing else is ap
 on the way in RLlib (no observation filter, no action normalisation); the env clips
 actions into its box, so the effective action is ``clamp(action, low, high)``.
 
-The metadata travels inside the file (TorchScript extra file ``metadata.json``; ONNX
-``metadata_props``): observation and action layout, game parameters, player, versions.
+Formats: ``export`` writes a ``torch.export`` ``ExportedProgram`` (``.pt2``, load with
+``torch.export.load(path).module()``), the format torch develops further; ``torchscript``
+(``torch.jit.load``) is kept for the users who ask for it, though torch 2.13 marks
+``torch.jit`` deprecated; ``onnx`` for other runtimes. The batch dimension is dynamic in all three.
+
+The metadata travels inside the file (``.pt2`` and TorchScript extra file ``metadata.json``;
+ONNX ``metadata_props``): observation and action layout, game parameters, player, versions.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from league.players import Player
 from league.store import DB_NAME, LeagueStore
 
 METADATA_FILE = "metadata.json"
-FORMATS = ("torchscript", "onnx")
+FORMATS = ("export", "torchscript", "onnx")
 
 
 class ExportError(ValueError):
@@ -129,10 +134,16 @@ def build(run_dir: Path, spec: str) -> tuple[ExportedPolicy, dict[str, Any]]:
 def export(policy: ExportedPolicy, info: dict[str, Any], fmt: str, out: Path) -> None:
     example = torch.zeros(1, info["observation"]["size"])
     out.parent.mkdir(parents=True, exist_ok=True)
-    partial = out.with_name(out.name + ".partial")
-    if fmt == "torchscript":
-        scripted = torch.jit.script(policy)
-        torch.jit.save(scripted, str(partial), _extra_files={METADATA_FILE: json.dumps(info)})
+    partial = out.with_suffix(".partial" + out.suffix)  # keeps the suffix torch.export.save expects
+    if fmt == "export":
+        # A batch of 2 to trace: torch.export specialises a dimension of size 1 to a constant.
+        program = torch.export.export(policy, (example.expand(2, -1),),
+                                      dynamic_shapes={"observation": {0: torch.export.Dim("batch")}})
+        torch.export.save(program, str(partial), extra_files={METADATA_FILE: json.dumps(info)})
+    elif fmt == "torchscript":
+        with warnings.catch_warnings():  # torch 2.13 marks torch.jit deprecated; the format is kept on purpose
+            warnings.simplefilter("ignore", DeprecationWarning)
+            torch.jit.save(torch.jit.script(policy), str(partial), _extra_files={METADATA_FILE: json.dumps(info)})
     else:
         import onnx
 

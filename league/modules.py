@@ -12,6 +12,7 @@ Every agent's observation arrives with the env's 22-number global state appended
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import numpy as np
@@ -26,6 +27,22 @@ from ray.rllib.core.rl_module.torch import TorchRLModule
 
 # Initial log standard deviation of the Gaussian policy (std ~0.6 of the [-1, 1] range).
 INITIAL_LOG_STD = -0.5
+
+
+class _RLModuleConfigNotice(logging.Filter):
+    """Drops Ray 2.60's ``RLModule(config=RLModuleConfig)`` DeprecationWarning.
+
+    Our modules are built the current way (``RLModuleSpec`` with ``model_config``, i.e.
+    ``RLModule(observation_space=..., action_space=..., model_config=...)``), but
+    ``RLModule.__init__`` itself still builds an ``RLModuleConfig`` for old subclasses, and
+    that deprecated class warns on every first construction in a process, whoever calls it.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "RLModuleConfig" not in record.getMessage()
+
+
+logging.getLogger("ray._common.deprecation").addFilter(_RLModuleConfigNotice())
 
 
 def mlp(inputs: int, hidden: list[int], outputs: int, last_gain: float) -> nn.Sequential:

@@ -2,7 +2,9 @@
 
 A pair never played counts as an even match (win rate 0.5), as in AlphaStar.
 Ratings are Elo-scaled Bradley-Terry strengths fitted to all results so far:
-``P(i beats j) = 1 / (1 + 10 ** ((r_j - r_i) / 400))``, mean rating 1000.
+``P(i beats j) = 1 / (1 + 10 ** ((r_j - r_i) / 400))``, mean rating 1000 over the rated
+players. A player without a single game has nothing to fit and gets no rating (rather
+than the prior's 1000, which would read as a measured average).
 """
 
 from __future__ import annotations
@@ -10,6 +12,10 @@ from __future__ import annotations
 from collections import defaultdict
 
 import numpy as np
+
+from envs.agents import Outcome
+
+ATTACKER_WINS = frozenset(o.label for o in Outcome if o.attacker_wins)
 
 UNPLAYED_WIN_RATE = 0.5
 ELO_SCALE = 400.0 / np.log(10.0)
@@ -23,7 +29,9 @@ def win_rate(wins: int, games: int) -> float:
 
 
 def elo_ratings(results: list[tuple[int, int, int, int]], players: list[int], iterations: int = 200) -> dict[int, float]:
-    """Ratings from ``(attacker_id, team_id, attacker_wins, games)`` rows."""
+    """Ratings from ``(attacker_id, team_id, attacker_wins, games)`` rows, of the ``players`` that played."""
+    played = {p for a, t, _, n in results if n > 0 for p in (a, t)}
+    players = [p for p in players if p in played]
     if not players:
         return {}
     index = {p: i for i, p in enumerate(players)}
@@ -56,3 +64,9 @@ def aggregate(rows: list[tuple[int, int, str, int]], attacker_wins: set[str]) ->
         if outcome in attacker_wins:
             entry[0] += count
     return {key: (w, n) for key, (w, n) in table.items()}
+
+
+def league_ratings(match_rows: list[tuple[int, int, str, int]], players: list[int]) -> dict[int, float]:
+    """Ratings from ``(attacker, team, outcome, count)`` rows (``LeagueStore.match_rows``)."""
+    table = aggregate(match_rows, ATTACKER_WINS)
+    return elo_ratings([(a, t, w, n) for (a, t), (w, n) in table.items()], players)

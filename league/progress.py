@@ -1,28 +1,47 @@
-"""What a running league shows: one line per iteration (rich) and TensorBoard scalars.
+"""What a running league shows: one line per iteration and TensorBoard scalars.
 
-Steps per second are env steps sampled in the iteration divided by its wall time,
-sampling and learning together.
+On a terminal the lines go through rich (time column, colours); otherwise (a log file,
+a pipe) each iteration is one plain line, ``HH:MM:SS text``, so that ``grep`` finds it whole.
+
+Every figure is this iteration's own, measured here: steps per second are the env steps
+sampled in the iteration divided by the wall time of ``algo.train()`` (sampling and
+learning together); the split is the Learner's own clock of its updates (learning) and
+the rest of ``algo.train()`` (sampling, weight sync), plus the in-training evaluation.
+RLlib's result timers are exponential averages over iterations and are not used.
 """
 
 from __future__ import annotations
 
+import sys
+import time
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 from rich.console import Console
 from tensorboardX import SummaryWriter
 
-
 if TYPE_CHECKING:
-    from league.coordinator import Coordinator
+    from league.coordinator import Coordinator, PhaseState
+    from league.evaluation import PairResult
 
 TRAIN_METRICS = ("policy_loss", "vf_loss", "entropy", "mean_kl_loss")
 
 
+@dataclass(frozen=True)
+class IterationTiming:
+    """Wall-clock seconds of one iteration's parts."""
+
+    sampling: float  # ``algo.train()`` minus the Learner's updates
+    learning: float  # the Learner's updates
+    evaluation: float  # in-training evaluation of the learners (0 when none was due)
+
+
 class ProgressReporter:
-    def __init__(self, run_dir: Path, total_phases: int, console: Console | None = None):
-        self.console = console or Console(stderr=True)
+    def __init__(self, run_dir: Path, total_phases: int, stream: IO[str] | None = None):
+        self.stream = stream or sys.stderr
+        self.console = Console(file=self.stream, log_path=False) if self.stream.isatty() else None
         self.writer = SummaryWriter(str(run_dir / "tensorboard"))
         self.total_phases = total_phases
 
@@ -30,30 +49,44 @@ class ProgressReporter:
         self.writer.close()
 
     def message(self, text: str) -> None:
-        self.console.log(text)
+        if self.console is not None:
+            self.console.log(text, markup=False, highlight=False)
+        else:
+            print(f"{time.strftime('%H:%M:%S')} {text}", file=self.stream, flush=True)
 
     def iteration(
         self,
         coordinator: "Coordinator",
         result: dict[str, Any],
         weights: dict[str, dict[str, float]],
-        steps_per_second: float,
+        phase: "PhaseState",
+        steps: int,
+        timing: IterationTiming,
         snapshots: list[str],
+        evaluation: list["PairResult"],
     ) -> None:
+        """Report iteration ``coordinator.state.iteration``, trained in ``phase`` (as it stood after it)."""
         st = coordinator.state
-        phase = st.phase
         league_size = len(coordinator.store.players())
         phase_rate = phase.learner_wins / phase.episodes if phase.episodes else float("nan")
         side = phase.side
-        self.console.log(
+        train_seconds = timing.sampling + timing.learning
+        steps_per_second = steps / train_seconds if train_seconds > 0 else float("nan")
+        evaluated = f", eval {timing.evaluation:.1f} s" if evaluation else ""
+        self.message(
             f"phase {phase.index + 1}/{self.total_phases} {side:8s} | iter {st.iteration:4d} | "
             f"{st.env_steps:8d} env steps | {steps_per_second:6.0f} steps/s | "
+            f"sample {timing.sampling:.1f} s, learn {timing.learning:.1f} s{evaluated} | "
             f"{side} win rate {phase_rate:.2f} over {phase.episodes} ep | league {league_size}"
             + (f" | snapshot {', '.join(snapshots)}" if snapshots else "")
         )
         i = st.iteration
         self.scalar("perf/sps", steps_per_second, i)
         self.scalar("perf/env_steps", st.env_steps, i)
+        self.scalar("perf/sampling_seconds", timing.sampling, i)
+        self.scalar("perf/learning_seconds", timing.learning, i)
+        if evaluation:
+            self.scalar("perf/evaluation_seconds", timing.evaluation, i)
         self.scalar("league/size", league_size, i)
         self.scalar("league/phase", phase.index, i)
         self.scalar(f"league/{side}_phase_win_rate", phase_rate, i)
@@ -65,7 +98,13 @@ class ProgressReporter:
             if module in learner_names:
                 for key in TRAIN_METRICS:
                     self.scalar(f"train/{module}/{key}", stats.get(key), i)
+        self.evaluation(evaluation, i)
         self.writer.flush()
+
+    def evaluation(self, results: list["PairResult"], iteration: int) -> None:
+        """Attacker win rate of each evaluated pair, ``eval/ATTACKER_vs_TEAM``."""
+        for r in results:
+            self.scalar(f"eval/{r.attacker.name}_vs_{r.team.name}", r.attacker_wins / r.games, iteration)
 
     def scalar(self, tag: str, value: Any, step: int) -> None:
         """Write a scalar unless it is missing or not finite (an empty phase, an idle module)."""

@@ -1,10 +1,17 @@
-"""A run's report: ``python -m league.report --run-dir DIR`` writes ``DIR/report/report.md`` and PNGs.
+"""A run's report: ``python -m league.report --run-dir DIR`` writes ``DIR/report/``.
 
-Sections: the Table 1 analogue next to the paper's numbers, the payoff matrix heat map,
-ratings and learner win rates over training, episode returns, and 3D trajectories of
-won and lost episodes for each side (the analogues of the paper's Fig. 3 and Fig. 4).
-Evaluation numbers come from the league database; a pair the run never evaluated is
-played now on the fixed evaluation games.
+* ``report.md`` with PNGs: the Table 1 analogue next to the paper's numbers, the payoff
+  matrix, ratings over training (one panel per side) and a table of every player's
+  rating, learner win rates and episode returns in training (phases shaded; a line
+  breaks where its learner did not train), and 3D trajectories of a won and a lost game
+  for each side (the analogues of the paper's Fig. 3 and Fig. 4).
+* ``index.html``: the same content in one self-contained file (plotly's JavaScript
+  inside, so it opens offline), with the trajectories as 3D scenes to rotate, zoom and
+  step through (``league.report_html``).
+
+Evaluation numbers are each pair's newest evaluation in the league database (a pair
+played again on the same fixed games is one measurement, not more evidence); a pair the
+run never evaluated is played now on the fixed evaluation games.
 """
 
 from __future__ import annotations
@@ -13,6 +20,7 @@ import argparse
 import json
 import sys
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -27,187 +35,354 @@ from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
-from league.payoff import aggregate
+from league.payoff import ATTACKER_WINS, aggregate, league_ratings
 from league.players import Player
 from league.store import DB_NAME, LeagueStore
 
-ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 # The paper's Table 1: A's winning percentage over 100 test rounds per method.
 PAPER_TABLE_1 = {1: 0.48, 2: 0.6253, 3: 0.5763}
 PAPER_TEAM = ("avoid_attacker", "pure_pursuit")
 TRAJECTORY_GAMES = 200
+SIDE_COLOURS = {"attacker": "#d62728", "team": "#1f77b4"}  # phase shading and the sides' panels
+DPI = 110
+
+Series = dict[str, tuple[list[int], list[float]]]  # label -> (iterations, values)
 
 
+@dataclass(frozen=True)
+class Phase:
+    index: int
+    side: str
+    first_iteration: int
+    last_iteration: int
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One recorded game shown as a trajectory: ``side`` won or lost it."""
+
+    side: str
+    label: str  # "won" or "lost"
+    matchup: str  # "ATTACKER vs TEAM (game G)"
+    path: np.ndarray  # (steps + 1, 3 agents, 3) positions
+    outcome: Outcome
+
+
+@dataclass
+class ReportData:
+    run: RunConfig
+    players: list[Player]
+    attackers: list[Player]  # frozen, rows of the payoff matrix
+    teams: list[Player]  # frozen, columns
+    payoff: dict[tuple[int, int], tuple[int, int]]  # (attacker id, team id) -> (attacker wins, games)
+    ratings: dict[int, tuple[list[int], list[float]]]  # player id -> (iterations, ratings) over training
+    final_ratings: dict[int, float]  # fitted now to every game counted once; players without games have none
+    games: dict[int, int]  # player id -> games in training and newest evaluations
+    win_rates: Series
+    returns: Series
+    phases: list[Phase]
+    episodes: list[Episode]
+    missing_episodes: list[str]  # why a won or lost game of a side is not shown
+    summary: str
+
+
+# ---------------------------------------------------------------- data
 def evaluation_payoff(store: LeagueStore, run: RunConfig, run_dir: Path, needed: list[tuple[Player, Player]]):
-    """``{(attacker id, team id): (attacker wins, games)}`` of the newest evaluation, filling gaps."""
-    latest = store.db.execute("SELECT MAX(iteration) FROM matches WHERE source = 'evaluation'").fetchone()[0]
-    rows = store.db.execute(
-        "SELECT attacker, team, outcome, SUM(count) FROM matches WHERE source = 'evaluation' AND iteration = ? "
-        "GROUP BY attacker, team, outcome",
-        (latest if latest is not None else -1,),
-    ).fetchall()
-    table = aggregate(rows, ATTACKER_WINS)
+    """``{(attacker id, team id): (attacker wins, games)}`` of each pair's newest evaluation, filling gaps."""
+    table = aggregate(store.newest_evaluation_rows(), ATTACKER_WINS)
     missing = [(a, t) for a, t in needed if (a.id, t.id) not in table]
     for r in evaluate_pairs(run.game, run_dir, missing, run.evaluation.episodes):
         table[(r.attacker.id, r.team.id)] = (r.attacker_wins, r.games)
     return table
 
 
-def table_one(store: LeagueStore, payoff, players: list[Player]) -> str:
-    team = next((p for p in players if p.kind == "scripted" and (p.scripted_targeter, p.scripted_defender) == PAPER_TEAM), None)
-    lines = ["| method | attacker | win rate vs the paper's scripted team | 95% interval | games | paper (100 rounds) |",
-             "| --- | --- | --- | --- | --- | --- |"]
-    latest = {}
-    for p in players:
-        if p.side == "attacker" and p.kind == "snapshot":
-            latest[p.reward_method] = p
-    for method, attacker in sorted(latest.items()):
-        wins, games = payoff.get((attacker.id, team.id), (0, 0)) if team else (0, 0)
-        low, high = wilson_interval(wins, games)
-        rate = f"{wins / games:.3f}" if games else "not evaluated"
-        lines.append(f"| {method} | {attacker.name} | {rate} | [{low:.3f}, {high:.3f}] | {games} | {PAPER_TABLE_1[method]} |")
-    return "\n".join(lines) + "\n"
+def player_games(store: LeagueStore, payoff: dict[tuple[int, int], tuple[int, int]]) -> dict[int, int]:
+    """Games per player: training episodes plus the newest evaluation of each pair (gaps filled now)."""
+    games: dict[int, int] = defaultdict(int)
+    for table in (aggregate(store.match_rows("training"), ATTACKER_WINS), payoff):
+        for (attacker, team), (_, n) in table.items():
+            games[attacker] += n
+            games[team] += n
+    return dict(games)
 
 
-def heat_map(payoff, attackers: list[Player], teams: list[Player], out: Path) -> None:
-    grid = np.full((len(attackers), len(teams)), np.nan)
-    for i, a in enumerate(attackers):
-        for j, t in enumerate(teams):
-            wins, games = payoff.get((a.id, t.id), (0, 0))
-            if games:
-                grid[i, j] = wins / games
-    fig, ax = plt.subplots(figsize=(3.0 + 1.1 * len(teams), 2.5 + 0.45 * len(attackers)))
-    image = ax.imshow(grid, cmap="RdBu_r", vmin=0, vmax=1, aspect="auto")
-    ax.set_xticks(range(len(teams)), [t.name for t in teams], rotation=45, ha="right", fontsize=7)
-    ax.set_yticks(range(len(attackers)), [a.name for a in attackers], fontsize=7)
-    for i in range(len(attackers)):
-        for j in range(len(teams)):
-            if not np.isnan(grid[i, j]):
-                ax.text(j, i, f"{grid[i, j]:.2f}", ha="center", va="center", fontsize=6)
-    fig.colorbar(image, label="attacker win rate")
-    ax.set_title("payoff (evaluation)")
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-
-
-def line_plot(series: dict[str, tuple[list, list]], ylabel: str, title: str, out: Path) -> None:
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for label, (x, y) in sorted(series.items()):
-        ax.plot(x, y, label=label, lw=1.2)
-    ax.set_xlabel("iteration")
-    ax.set_ylabel(ylabel)
-    ax.set_title(title)
-    if series:
-        ax.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-
-
-def learner_win_rates(store: LeagueStore, players: list[Player]) -> dict[str, tuple[list, list]]:
+def learner_win_rates(store: LeagueStore, players: list[Player]) -> Series:
+    """Each learner's win rate over its training episodes, per iteration it played."""
     learners = {p.id: p for p in players if p.kind == "learner"}
-    rows = store.db.execute(
-        "SELECT iteration, attacker, team, outcome, SUM(count) FROM matches WHERE source = 'training' "
-        "GROUP BY iteration, attacker, team, outcome ORDER BY iteration"
-    ).fetchall()
     counts: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0])
-    for iteration, attacker, team, outcome, n in rows:
+    for iteration, attacker, team, outcome, n in store.training_rows_by_iteration():
         for pid, attacker_side in ((attacker, True), (team, False)):
             if pid in learners:
                 entry = counts[(learners[pid].name, iteration)]
                 entry[1] += n
                 entry[0] += n if (outcome in ATTACKER_WINS) == attacker_side else 0
-    series: dict[str, tuple[list, list]] = defaultdict(lambda: ([], []))
+    series: Series = defaultdict(lambda: ([], []))
     for (name, iteration), (wins, games) in sorted(counts.items(), key=lambda kv: kv[0][1]):
         series[name][0].append(iteration)
         series[name][1].append(wins / games)
     return dict(series)
 
 
-def trajectories(run: RunConfig, run_dir: Path, attacker: Player, team: Player, side: str, out_dir: Path) -> list[str]:
-    """One won and one lost episode of ``side`` in ``attacker`` vs ``team``, as PNGs."""
+def phases_of(iterations: list[dict]) -> list[Phase]:
+    phases: list[Phase] = []
+    for row in iterations:
+        if phases and phases[-1].index == row["phase"]:
+            phases[-1] = Phase(row["phase"], row["learner_side"], phases[-1].first_iteration, row["iteration"])
+        else:
+            phases.append(Phase(row["phase"], row["learner_side"], row["iteration"], row["iteration"]))
+    return phases
+
+
+def record_episodes(run: RunConfig, run_dir: Path, attacker: Player, team: Player, side: str) -> tuple[list[Episode], list[str]]:
+    """The first won and the first lost game of ``side`` in ``attacker`` vs ``team``; or why there is none."""
     players = {**agents_of(attacker, run_dir), **agents_of(team, run_dir)}
     result = play(run.game, players, evaluation_scenarios(run.game.scenario, TRAJECTORY_GAMES), record=True)
     paths = np.stack(result.trajectory)  # (steps + 1, games, 3, 3)
     side_won = result.attacker_wins if side == "attacker" else ~result.attacker_wins
-    files = []
+    learned = attacker if side == "attacker" else team
+    episodes, missing = [], []
     for label, mask in (("won", side_won), ("lost", ~side_won)):
         games = np.flatnonzero(mask)
         if not len(games):
+            missing.append(f"{learned.name} ({side}) {'never won' if label == 'won' else 'never lost'} "
+                           f"in {TRAJECTORY_GAMES} fixed games of {attacker.name} vs {team.name}.")
             continue
         g = int(games[0])
-        name = f"trajectory_{side}_{label}.png"
-        steps = int(result.steps[g])
-        plot_episode(paths[: steps + 1, g], Outcome(int(result.outcome[g])), run.game,
-                     f"{attacker.name} vs {team.name} (game {g}): {side} {label}", out_dir / name)
-        files.append(name)
-    return files
+        matchup = f"{attacker.name} vs {team.name} (game {g})"
+        episodes.append(Episode(side, label, matchup, paths[: int(result.steps[g]) + 1, g], Outcome(int(result.outcome[g]))))
+    return episodes, missing
 
 
-def build_report(run_dir: Path) -> Path:
-    run = saved_run_config(run_dir)
-    store = LeagueStore(run_dir)
-    out = run_dir / "report"
-    out.mkdir(exist_ok=True)
+def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
     players = store.players()
     frozen = [p for p in players if p.kind != "learner"]
     attackers = [p for p in frozen if p.side == "attacker"]
     teams = [p for p in frozen if p.side == "team"]
     payoff = evaluation_payoff(store, run, run_dir, [(a, t) for a in attackers for t in teams])
 
-    heat_map(payoff, attackers, teams, out / "payoff.png")
-    ratings = defaultdict(lambda: ([], []))
-    names = {p.id: p.name for p in players}
-    for iteration, pid, rating in store.db.execute("SELECT iteration, player, rating FROM ratings ORDER BY iteration"):
-        ratings[names[pid]][0].append(iteration)
-        ratings[names[pid]][1].append(rating)
-    line_plot(dict(ratings), "Elo rating", "ratings over training", out / "ratings.png")
-    line_plot(learner_win_rates(store, players), "win rate in training", "learner win rates", out / "win_rates.png")
-    returns = defaultdict(lambda: ([], []))
-    for iteration, data in store.db.execute("SELECT iteration, returns FROM iterations ORDER BY iteration"):
-        for module, value in json.loads(data or "{}").items():
-            returns[module][0].append(iteration)
+    ratings: dict[int, tuple[list[int], list[float]]] = defaultdict(lambda: ([], []))
+    for iteration, pid, rating in store.rating_history():
+        ratings[pid][0].append(iteration)
+        ratings[pid][1].append(rating)
+    returns: Series = defaultdict(lambda: ([], []))
+    iterations = store.iteration_rows()
+    for row in iterations:
+        for module, value in json.loads(row["returns"] or "{}").items():
+            returns[module][0].append(row["iteration"])
             returns[module][1].append(value)
-    line_plot(dict(returns), "mean episode return", "episode returns of the learners", out / "returns.png")
 
-    figures = []
-    paper_team = next((t for t in teams if t.kind == "scripted"), None)
+    # Each side's newest snapshot against a scripted opponent (the paper's team when there is one).
+    scripted_teams = [t for t in teams if t.kind == "scripted"]
+    paper_team = next((t for t in scripted_teams if (t.scripted_targeter, t.scripted_defender) == PAPER_TEAM),
+                      scripted_teams[0] if scripted_teams else None)
     scripted_attacker = next((a for a in attackers if a.kind == "scripted"), None)
-    newest_attacker = [a for a in attackers if a.kind == "snapshot"][-1:]
-    newest_team = [t for t in teams if t.kind == "snapshot"][-1:]
-    if newest_attacker and paper_team:
-        figures += trajectories(run, run_dir, newest_attacker[0], paper_team, "attacker", out)
-    if newest_team and scripted_attacker:
-        figures += trajectories(run, run_dir, scripted_attacker, newest_team[0], "team", out)
+    newest_attacker = next((a for a in reversed(attackers) if a.kind == "snapshot"), None)
+    newest_team = next((t for t in reversed(teams) if t.kind == "snapshot"), None)
+    episodes, missing = [], []
+    for side, attacker, team in (("attacker", newest_attacker, paper_team), ("team", scripted_attacker, newest_team)):
+        if attacker is None or team is None:
+            missing.append(f"No {side} trajectories: the league has no {side} snapshot or no scripted opponent for it.")
+            continue
+        shown, why = record_episodes(run, run_dir, attacker, team, side)
+        episodes += shown
+        missing += why
 
     last = store.last_iteration() or {}
-    wall = store.db.execute("SELECT COALESCE(SUM(wall_seconds), 0) FROM iterations").fetchone()[0]
-    text = [
-        f"# Report: {run.name}",
-        "",
+    summary = (
         f"{last.get('iteration', 0)} iterations, {last.get('env_steps', 0)} env steps, {last.get('episodes', 0)} "
-        f"training episodes, {wall:.0f} s of training iterations; {len(players)} players. Evaluation: "
-        f"{run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair.",
-        "",
-        "## Table 1 analogue",
-        "",
+        f"training episodes, {store.training_seconds():.0f} s of training iterations; {len(players)} players. "
+        f"Evaluation: {run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair."
+    )
+    return ReportData(
+        run=run, players=players, attackers=attackers, teams=teams, payoff=payoff, ratings=dict(ratings),
+        final_ratings=league_ratings(store.counted_results(), [p.id for p in players]),
+        games=player_games(store, payoff), win_rates=learner_win_rates(store, players), returns=dict(returns),
+        phases=phases_of(iterations), episodes=episodes, missing_episodes=missing, summary=summary,
+    )
+
+
+# ---------------------------------------------------------------- tables
+def table_one_rows(data: ReportData) -> list[list[str]]:
+    """The newest attacker snapshot of each reward method against the paper's scripted team."""
+    team = next((p for p in data.teams if p.kind == "scripted" and (p.scripted_targeter, p.scripted_defender) == PAPER_TEAM), None)
+    latest = {p.reward_method: p for p in data.attackers if p.kind == "snapshot"}
+    rows = []
+    for method, attacker in sorted(latest.items()):
+        wins, games = data.payoff.get((attacker.id, team.id), (0, 0)) if team else (0, 0)
+        low, high = wilson_interval(wins, games)
+        rate = f"{wins / games:.3f}" if games else "not evaluated"
+        rows.append([str(method), attacker.name, rate, f"[{low:.3f}, {high:.3f}]", str(games), str(PAPER_TABLE_1[method])])
+    return rows
+
+
+TABLE_ONE_HEADER = ["method", "attacker", "win rate vs the paper's scripted team", "95% interval", "games",
+                    "paper (100 rounds)"]
+RATINGS_HEADER = ["player", "side", "kind", "rating", "games"]
+RATINGS_NOTE = ("Every player's rating, fitted to every game counted once: the training episodes and each pair's "
+                "newest evaluation (the same fixed games played again are one measurement). A player without "
+                "games has no rating.")
+
+
+def rating_rows(data: ReportData) -> list[list[str]]:
+    """Every player's rating fitted to every game counted once, best first; players without games have none."""
+    newest = data.final_ratings
+    by_rating = sorted(data.players, key=lambda p: (p.id not in newest, -newest.get(p.id, 0.0)))
+    return [[p.name, p.side, p.kind, f"{newest[p.id]:.0f}" if p.id in newest else "no games", str(data.games.get(p.id, 0))]
+            for p in by_rating]
+
+
+def markdown_table(header: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "| " + " | ".join("---" for _ in header) + " |"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------- PNG plots
+def payoff_grid(data: ReportData) -> np.ndarray:
+    grid = np.full((len(data.attackers), len(data.teams)), np.nan)
+    for i, a in enumerate(data.attackers):
+        for j, t in enumerate(data.teams):
+            wins, games = data.payoff.get((a.id, t.id), (0, 0))
+            if games:
+                grid[i, j] = wins / games
+    return grid
+
+
+def heat_map(data: ReportData, out: Path) -> None:
+    grid = payoff_grid(data)
+    rows, columns = grid.shape
+    fig, ax = plt.subplots(figsize=(2.6 + 0.85 * columns, 1.6 + 0.3 * rows))
+    cmap = plt.get_cmap("RdBu_r")  # red: the attacker wins, blue: the team wins, white: even
+    image = ax.imshow(grid, cmap=cmap, vmin=0, vmax=1, aspect="auto")
+    ax.set_xticks(range(columns), [t.name for t in data.teams], rotation=35, ha="right", fontsize=8)
+    ax.set_yticks(range(rows), [a.name for a in data.attackers], fontsize=8)
+    for i in range(rows):
+        for j in range(columns):
+            if not np.isnan(grid[i, j]):
+                r, g, b, _ = cmap(grid[i, j])
+                dark = 0.2126 * r + 0.7152 * g + 0.0722 * b < 0.5  # relative luminance of the cell
+                ax.text(j, i, f"{grid[i, j]:.2f}", ha="center", va="center", fontsize=8,
+                        color="white" if dark else "black")
+    fig.colorbar(image, label="attacker win rate", fraction=0.05)
+    ax.set_title("attacker win rate, newest evaluation of each pair")
+    fig.tight_layout()
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+
+
+def broken(x: list[int], y: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The series with a NaN between iterations that are not consecutive, so the line breaks there."""
+    x_out, y_out = [], []
+    for i, (xi, yi) in enumerate(zip(x, y)):
+        if i and xi - x[i - 1] > 1:
+            x_out.append(np.nan)
+            y_out.append(np.nan)
+        x_out.append(xi)
+        y_out.append(yi)
+    return np.array(x_out, dtype=float), np.array(y_out, dtype=float)
+
+
+def shade_phases(ax, phases: list[Phase]) -> None:
+    for phase in phases:
+        ax.axvspan(phase.first_iteration - 0.5, phase.last_iteration + 0.5, color=SIDE_COLOURS[phase.side],
+                   alpha=0.07, lw=0)
+
+
+def phase_legend_handles() -> list:
+    from matplotlib.patches import Patch
+
+    return [Patch(color=c, alpha=0.15, label=f"{side} phase") for side, c in SIDE_COLOURS.items()]
+
+
+def line_plot(series: Series, phases: list[Phase], ylabel: str, title: str, out: Path) -> None:
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    shade_phases(ax, phases)
+    colours = plt.get_cmap("tab10")
+    for k, (label, (x, y)) in enumerate(sorted(series.items())):
+        ax.plot(*broken(x, y), label=label, lw=1.2, marker="o", ms=2.5, color=colours(k % 10))
+    ax.set_xlabel("iteration")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    handles, _ = ax.get_legend_handles_labels()
+    ax.legend(handles=handles + phase_legend_handles(), fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig.tight_layout()
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+
+
+def ratings_plot(data: ReportData, out: Path) -> None:
+    """One panel per side: learners and scripted players named, snapshots as thin grey lines (see the table)."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5), sharey=True)
+    colours = plt.get_cmap("tab10")
+    for ax, side in zip(axes, ("attacker", "team")):
+        shade_phases(ax, data.phases)
+        named = 0
+        for player in (p for p in data.players if p.side == side):
+            x, y = data.ratings.get(player.id, ([], []))
+            if not x:
+                continue
+            if player.kind == "snapshot":
+                ax.plot(*broken(x, y), color="grey", lw=0.6, alpha=0.6)
+                continue
+            style = {"lw": 1.8} if player.kind == "learner" else {"lw": 1.2, "ls": "--"}
+            ax.plot(*broken(x, y), label=f"{player.name} ({player.kind})", color=colours(named % 10), **style)
+            named += 1
+        ax.plot([], [], color="grey", lw=0.6, label="snapshots (table below)")
+        ax.set_title(f"{side} side")
+        ax.set_xlabel("iteration")
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
+    axes[0].set_ylabel("Elo rating")
+    fig.suptitle("ratings over training (fitted to every result so far)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------- the report
+def build_report(run_dir: Path) -> Path:
+    from league import report_html
+
+    import torch
+
+    run = saved_run_config(run_dir)
+    torch.set_num_threads(run.resources.threads_for(1))  # the games played here run torch in this process
+    store = LeagueStore(run_dir)
+    try:
+        data = gather(store, run, run_dir)
+    finally:
+        store.close()
+    out = run_dir / "report"
+    out.mkdir(exist_ok=True)
+    heat_map(data, out / "payoff.png")
+    ratings_plot(data, out / "ratings.png")
+    line_plot(data.win_rates, data.phases, "win rate in training", "learner win rates (per iteration)", out / "win_rates.png")
+    line_plot(data.returns, data.phases, "mean episode return", "episode returns of the learners", out / "returns.png")
+    figures = []
+    for episode in data.episodes:
+        name = f"trajectory_{episode.side}_{episode.label}.png"
+        plot_episode(episode.path, episode.outcome, run.game, f"{episode.matchup}: {episode.side} {episode.label}", out / name)
+        figures.append(name)
+
+    text = [
+        f"# Report: {run.name}", "", data.summary, "",
+        "## Table 1 analogue", "",
         "The newest attacker snapshot of each reward method against the paper's training opponent "
         "(T to the terminal while avoiding A, D pursuing A). The paper's starting positions are not "
-        "published, so compare the ordering, not the values.",
-        "",
-        table_one(store, payoff, players),
+        "published, so compare the ordering, not the values.", "",
+        markdown_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "## Payoff matrix", "", "![payoff](payoff.png)", "",
-        "## Ratings over training", "", "![ratings](ratings.png)", "",
+        "## Ratings", "", "![ratings](ratings.png)", "",
+        RATINGS_NOTE, "",
+        markdown_table(RATINGS_HEADER, rating_rows(data)),
         "## Learner win rates in training", "", "![win rates](win_rates.png)", "",
         "## Episode returns", "", "![returns](returns.png)", "",
         "## Trajectories", "",
     ]
     text += [f"![{name}]({name})" for name in figures]
-    report = out / "report.md"
-    report.write_text("\n".join(text) + "\n")
-    store.close()
-    return report
+    text += ["", *data.missing_episodes]
+    (out / "report.md").write_text("\n".join(text) + "\n")
+    report_html.write(data, out / "index.html")
+    return out / "report.md"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -217,7 +392,8 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.run_dir / DB_NAME).exists():
         print(f"error: no league database at {args.run_dir / DB_NAME}", file=sys.stderr)
         return 2
-    print(f"report written to {build_report(args.run_dir.resolve())}")
+    report = build_report(args.run_dir.resolve())
+    print(f"report written to {report} and {report.with_name('index.html')}")
     return 0
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import functools
 import math
 import random
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -274,11 +275,34 @@ def _runner_threads(threads: int, env_runner: Any = None, **kwargs: Any) -> None
 
 
 class LeaguePPOLearner(PPOTorchLearner):
-    """PPO learner that gives no optimizer to parameter-free (scripted) modules."""
+    """PPO learner that gives no optimizer to parameter-free (scripted) modules.
+
+    It also clocks its own updates: RLlib's ``learner_update_timer`` is an exponential
+    average over iterations (coefficient 0.01), so it mostly repeats the first iteration.
+    """
+
+    update_seconds = 0.0  # wall time of ``update`` calls since the last ``take_update_seconds``
 
     def configure_optimizers_for_module(self, module_id: str, config: Any = None) -> None:
         if any(True for _ in self.module[module_id].parameters()):
             super().configure_optimizers_for_module(module_id=module_id, config=config)
+
+    def update(self, *args: Any, **kwargs: Any) -> Any:
+        started = time.perf_counter()
+        try:
+            return super().update(*args, **kwargs)
+        finally:
+            self.update_seconds += time.perf_counter() - started
+
+    def take_update_seconds(self) -> float:
+        seconds, self.update_seconds = self.update_seconds, 0.0
+        return seconds
+
+
+def take_learning_seconds(algo: Algorithm) -> float:
+    """Wall time the Learner spent updating since the last call (the slowest Learner's, if several)."""
+    results = algo.learner_group.foreach_learner(lambda learner: learner.take_update_seconds())
+    return max((r.get() for r in results if r.ok), default=0.0)
 
 
 def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOConfig:

@@ -24,6 +24,7 @@ from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, load_config, 
 from league.coordinator import Coordinator, PhaseState, RunState, phase_count, phase_side
 from league.evaluate import method_table
 from league.evaluation import evaluate_pairs, format_table
+from league.payoff import league_ratings
 from league.progress import ProgressReporter
 from league.store import DB_NAME, LeagueStore
 
@@ -139,9 +140,9 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
     )
     iteration = coordinator.state.iteration
     with store.transaction():
-        store.db.execute("DELETE FROM matches WHERE source = 'evaluation' AND iteration = ?", (iteration,))
         for r in results:
-            store.record_matches(iteration, "evaluation", r.outcome_rows())
+            store.record_evaluation(iteration, r.outcome_rows())
+        store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
         store.set_meta("evaluated_iteration", iteration)
     out = coordinator.run_dir / EVALUATION_FILE
     out.write_text(
@@ -150,8 +151,7 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
         "attacker win rate with its 95% Wilson interval.\n\n" + format_table(results)
         + "\n## Per attacker reward method\n\n" + method_table(results)
     )
-    for r in results:
-        progress.scalar(f"eval/{r.attacker.name}_vs_{r.team.name}", r.attacker_wins / r.games, iteration)
+    progress.evaluation(results, iteration)
     progress.message(f"evaluation of {len(results)} pairs written to {out}")
     return out
 

@@ -20,10 +20,10 @@ ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 
 
 def league_table(store: LeagueStore, source: str | None = None) -> Table:
-    """Players with rating, games and win rate over all their matches of ``source``."""
+    """Players with rating, games and win rate over their games of ``source``, each game counted once."""
     ratings = store.latest_ratings()
-    payoff = aggregate(store.match_rows(source), ATTACKER_WINS)
-    table = Table(title="league")
+    payoff = aggregate(store.counted_results(source), ATTACKER_WINS)
+    table = Table(title="league", caption="rating: none for a player without games (nothing to fit)")
     for column in ("player", "side", "kind", "reward", "parent", "env steps", "rating", "games", "win rate"):
         table.add_column(column, justify="right" if column in ("env steps", "rating", "games", "win rate") else "left")
     players = store.players()
@@ -49,6 +49,22 @@ def league_table(store: LeagueStore, source: str | None = None) -> Table:
     return table
 
 
+def run_line(store: LeagueStore) -> str:
+    """Where the run stands: finished or at which phase, and its average speed so far."""
+    last = store.last_iteration()
+    if not last:
+        return "no iteration finished yet"
+    checkpoint = store.last_checkpoint()
+    finished = checkpoint is not None and checkpoint[2].get("training_done", False)
+    where = "finished" if finished else f"phase {last['phase'] + 1} ({last['learner_side']} learning)"
+    seconds = store.training_seconds()
+    speed = f"{last['env_steps'] / seconds:.0f} env steps/s on average" if seconds > 0 else "no timing"
+    return (
+        f"{where}: iteration {last['iteration']}, {last['env_steps']} env steps, {last['episodes']} episodes, "
+        f"{seconds:.0f} s of training iterations, {speed}"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m league.status", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
@@ -59,14 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     store = LeagueStore(args.run_dir)
     console = Console() if sys.stdout.isatty() else Console(width=160)
-    last = store.last_iteration()
-    if last:
-        console.print(
-            f"iteration {last['iteration']}, phase {last['phase'] + 1} ({last['learner_side']} learning), "
-            f"{last['env_steps']} env steps, {last['episodes']} episodes, {last['steps_per_second']:.0f} steps/s"
-        )
-    else:
-        console.print("no iteration finished yet")
+    console.print(run_line(store))
     checkpoint = store.last_checkpoint()
     if checkpoint:
         console.print(f"last checkpoint: iteration {checkpoint[0]} at {checkpoint[1]}")

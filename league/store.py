@@ -142,6 +142,45 @@ class LeagueStore:
             [(iteration, source, a, t, outcome, n) for a, t, outcome, n in rows],
         )
 
+    def record_evaluation(self, iteration: int, rows: list[tuple[int, int, str, int]]) -> None:
+        """Record evaluation results ``(attacker_id, team_id, outcome, count)``, replacing repeats of a pair.
+
+        The same fixed games played again are not new evidence, so a pair's evaluation is one
+        measurement: the newest. Between two frozen players it replaces every earlier one; a
+        pair with a learner (whose weights change between iterations) replaces only its
+        evaluation of this iteration, and its earlier ones stay as the learner's history.
+        """
+        for attacker, team in {(a, t) for a, t, _, _ in rows}:
+            self.db.execute(
+                "DELETE FROM matches WHERE source = 'evaluation' AND attacker = ?1 AND team = ?2 AND (iteration = ?3 "
+                "OR NOT EXISTS (SELECT 1 FROM players WHERE id IN (?1, ?2) AND kind = 'learner'))",
+                (attacker, team, iteration),
+            )
+        self.record_matches(iteration, "evaluation", rows)
+
+    def newest_evaluation_rows(self) -> list[tuple[int, int, str, int]]:
+        """``(attacker, team, outcome, count)`` of each pair's newest evaluation."""
+        return self.db.execute(
+            "SELECT m.attacker, m.team, m.outcome, SUM(m.count) FROM matches m JOIN ("
+            "  SELECT attacker, team, MAX(iteration) AS newest FROM matches WHERE source = 'evaluation' "
+            "  GROUP BY attacker, team"
+            ") n ON m.attacker = n.attacker AND m.team = n.team AND m.iteration = n.newest "
+            "WHERE m.source = 'evaluation' GROUP BY m.attacker, m.team, m.outcome"
+        ).fetchall()
+
+    def counted_results(self, source: str | None = None) -> list[tuple[int, int, str, int]]:
+        """``(attacker, team, outcome, count)`` with every game counted once: the training
+        episodes and each pair's newest evaluation (``source`` picks one of the two)."""
+        training = self.match_rows("training") if source in (None, "training") else []
+        return training + (self.newest_evaluation_rows() if source in (None, "evaluation") else [])
+
+    def training_rows_by_iteration(self) -> list[tuple[int, int, int, str, int]]:
+        """``(iteration, attacker, team, outcome, count)`` of the training episodes, oldest first."""
+        return self.db.execute(
+            "SELECT iteration, attacker, team, outcome, SUM(count) FROM matches WHERE source = 'training' "
+            "GROUP BY iteration, attacker, team, outcome ORDER BY iteration"
+        ).fetchall()
+
     def match_rows(self, source: str | None = None, since_iteration: int = 0) -> list[tuple[int, int, str, int]]:
         return self.db.execute(
             "SELECT attacker, team, outcome, SUM(count) FROM matches "
@@ -151,6 +190,15 @@ class LeagueStore:
 
     def record_ratings(self, iteration: int, ratings: dict[int, float]) -> None:
         self.db.executemany("INSERT INTO ratings VALUES (?, ?, ?)", [(iteration, p, r) for p, r in ratings.items()])
+
+    def replace_ratings(self, iteration: int, ratings: dict[int, float]) -> None:
+        """The ratings of ``iteration``, refitted (after an evaluation added results)."""
+        self.db.execute("DELETE FROM ratings WHERE iteration = ?", (iteration,))
+        self.record_ratings(iteration, ratings)
+
+    def rating_history(self) -> list[tuple[int, int, float]]:
+        """``(iteration, player, rating)``, oldest first."""
+        return self.db.execute("SELECT iteration, player, rating FROM ratings ORDER BY iteration, player").fetchall()
 
     def latest_ratings(self) -> dict[int, float]:
         rows = self.db.execute(
@@ -167,6 +215,16 @@ class LeagueStore:
         cursor = self.db.execute("SELECT * FROM iterations ORDER BY iteration DESC LIMIT 1")
         row = cursor.fetchone()
         return dict(zip([c[0] for c in cursor.description], row)) if row else None
+
+    def iteration_rows(self) -> list[dict[str, Any]]:
+        """Every recorded iteration (``iterations`` columns), oldest first."""
+        cursor = self.db.execute("SELECT * FROM iterations ORDER BY iteration")
+        names = [c[0] for c in cursor.description]
+        return [dict(zip(names, row)) for row in cursor.fetchall()]
+
+    def training_seconds(self) -> float:
+        """Wall time of all recorded training iterations."""
+        return self.db.execute("SELECT COALESCE(SUM(wall_seconds), 0) FROM iterations").fetchone()[0]
 
     def iteration_count(self) -> int:
         return self.db.execute("SELECT COUNT(*) FROM iterations").fetchone()[0]

@@ -26,4 +26,5 @@ def tiny_run(tmp_path_factory):
         capture_output=True, text=True,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    (base / "run.log").write_text(proc.stderr)  # its progress lines, as a log file would hold them
     return run

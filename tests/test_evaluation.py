@@ -66,3 +66,6 @@ def test_report_holds_the_expected_files(tiny_run):
         assert (report / name).read_bytes()[:4] == b"\x89PNG"
         assert f"]({name})" in text
     assert list(report.glob("trajectory_attacker_*.png")) and list(report.glob("trajectory_team_*.png"))
+    page = (report / "index.html").read_text()
+    assert "Table 1 analogue" in page and "attacker-m2-v1" in page
+    assert "<script src" not in page and "<link" not in page  # self-contained: opens offline

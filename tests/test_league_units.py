@@ -58,6 +58,15 @@ def test_set_overrides_and_bad_yaml(tmp_path):
         load_config("smoke", ["ppo.lr"])
 
 
+def test_a_bad_key_given_with_set_is_reported_as_coming_from_set(tmp_path):
+    with pytest.raises(ConfigError) as err:
+        load_config("smoke", ["ppo.lrr=1"])
+    assert str(err.value).startswith("--set ppo.lrr=1: ppo.lrr: ") and "smoke.yaml" not in str(err.value)
+    bad_file = write(tmp_path, "name: x\nppo: {lrr: 1}\n")
+    with pytest.raises(ConfigError, match=r"run\.yaml: ppo\.lrr: "):  # a key from the file still names the file
+        load_config(bad_file, ["seed=3"])
+
+
 def test_run_exits_2_on_bad_config_and_writes_nothing(tmp_path, capsys):
     run_dir = tmp_path / "run"
     assert run_main(["--config", write(tmp_path, "name: x\nppo: {bogus: 1}\n"), "--run-dir", str(run_dir)]) == 2

@@ -1,0 +1,225 @@
+"""The report as one self-contained HTML page (``report/index.html``), built with plotly.
+
+plotly's JavaScript is written into the page once, so it opens offline and can be mailed
+as a single file. The trajectories are 3D scenes: drag to rotate, scroll to zoom, and
+step through the game with the slider or the play button.
+"""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import plotly.graph_objects as go
+from plotly.offline import get_plotlyjs
+
+from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
+from envs.render import COLOURS
+from league.report import (
+    RATINGS_HEADER,
+    RATINGS_NOTE,
+    SIDE_COLOURS,
+    TABLE_ONE_HEADER,
+    Episode,
+    Phase,
+    Series,
+    payoff_grid,
+    rating_rows,
+    table_one_rows,
+)
+
+if TYPE_CHECKING:
+    from envs.config import GameConfig
+    from league.report import ReportData
+
+# envs.render names matplotlib colours; the browser needs CSS ones.
+CSS = {"tab:red": "#d62728", "tab:blue": "#1f77b4", "tab:green": "#2ca02c"}
+AGENT_COLOURS = {agent: CSS.get(c, c) for agent, c in COLOURS.items()}
+PAGE_STYLE = """
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1200px; color: #222; }
+table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
+th { background: #f3f3f3; } td:first-child, th:first-child { text-align: left; }
+.scenes { display: grid; grid-template-columns: 1fr 1fr; gap: 1em; }
+.note { color: #555; }
+"""
+
+
+def html_table(header: list[str], rows: list[list[str]]) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def figure_div(fig: go.Figure, div_id: str) -> str:
+    # auto_play off: an animated scene starts at the end of the game and plays on request.
+    return fig.to_html(full_html=False, include_plotlyjs=False, div_id=div_id, auto_play=False,
+                       config={"displaylogo": False})
+
+
+def phase_shapes(phases: list[Phase]) -> list[dict]:
+    return [
+        dict(type="rect", xref="x", yref="paper", x0=p.first_iteration - 0.5, x1=p.last_iteration + 0.5, y0=0, y1=1,
+             fillcolor=SIDE_COLOURS[p.side], opacity=0.07, line_width=0, layer="below")
+        for p in phases
+    ]
+
+
+def broken_lists(x: list[int], y: list[float]) -> tuple[list, list]:
+    """``None`` between non-consecutive iterations: plotly breaks the line there."""
+    xs, ys = [], []
+    for i, (xi, yi) in enumerate(zip(x, y)):
+        if i and xi - x[i - 1] > 1:
+            xs.append(None)
+            ys.append(None)
+        xs.append(xi)
+        ys.append(yi)
+    return xs, ys
+
+
+def line_figure(series: Series, phases: list[Phase], ylabel: str, title: str) -> go.Figure:
+    fig = go.Figure()
+    for label, (x, y) in sorted(series.items()):
+        xs, ys = broken_lists(x, y)
+        fig.add_trace(go.Scatter(x=xs, y=ys, name=label, mode="lines+markers", marker_size=4))
+    fig.update_layout(title=title, xaxis_title="iteration", yaxis_title=ylabel, shapes=phase_shapes(phases),
+                      height=420, legend_title_text="shaded: red attacker phase, blue team phase")
+    return fig
+
+
+def ratings_figure(data: "ReportData") -> go.Figure:
+    from plotly.subplots import make_subplots
+
+    fig = make_subplots(rows=1, cols=2, shared_yaxes=True, subplot_titles=("attacker side", "team side"))
+    for col, side in enumerate(("attacker", "team"), start=1):
+        for player in (p for p in data.players if p.side == side):
+            x, y = data.ratings.get(player.id, ([], []))
+            if not x:
+                continue
+            xs, ys = broken_lists(x, y)
+            snapshot = player.kind == "snapshot"
+            fig.add_trace(go.Scatter(
+                x=xs, y=ys, name=player.name, mode="lines", legendgroup=side,
+                line=dict(width=0.8 if snapshot else 2, dash="dash" if player.kind == "scripted" else "solid"),
+                opacity=0.5 if snapshot else 1.0, visible="legendonly" if snapshot else True,
+            ), row=1, col=col)
+    fig.update_layout(title="ratings over training (snapshots hidden: click them in the legend)", height=460,
+                      yaxis_title="Elo rating")
+    fig.update_xaxes(title_text="iteration")
+    return fig
+
+
+def payoff_figure(data: "ReportData") -> go.Figure:
+    grid = payoff_grid(data)
+    text = np.where(np.isnan(grid), "", np.vectorize(lambda v: f"{v:.2f}")(np.nan_to_num(grid)))
+    fig = go.Figure(go.Heatmap(
+        z=grid, x=[t.name for t in data.teams], y=[a.name for a in data.attackers], zmin=0, zmax=1,
+        colorscale="RdBu_r", text=text, texttemplate="%{text}", colorbar_title="attacker<br>win rate",
+        hovertemplate="%{y} vs %{x}: %{z:.3f}<extra></extra>",
+    ))
+    fig.update_layout(title="attacker win rate, newest evaluation of each pair", height=200 + 24 * len(data.attackers),
+                      yaxis_autorange="reversed")
+    return fig
+
+
+def sphere(radius: float) -> go.Surface:
+    u, v = np.mgrid[0 : 2 * np.pi : 24j, 0 : np.pi : 12j]
+    return go.Surface(x=radius * np.cos(u) * np.sin(v), y=radius * np.sin(u) * np.sin(v), z=radius * np.cos(v),
+                      showscale=False, opacity=0.25, colorscale=[[0, "grey"], [1, "grey"]], name="terminal sphere",
+                      showlegend=True, hoverinfo="skip")
+
+
+def trajectory_figure(episode: Episode, game: "GameConfig") -> go.Figure:
+    """The game as a 3D scene; the frames step through it, one env step each."""
+    path = episode.path
+    steps = len(path) - 1
+    agents = (ATTACKER, TARGETER, DEFENDER)
+
+    def moving(k: int) -> list[go.Scatter3d]:
+        traces = []
+        for agent in agents:
+            p = path[: k + 1, agent]
+            traces.append(go.Scatter3d(x=p[:, 0], y=p[:, 1], z=p[:, 2], mode="lines", name=AGENTS[agent],
+                                       line=dict(color=AGENT_COLOURS[agent], width=5)))
+            traces.append(go.Scatter3d(x=[p[-1, 0]], y=[p[-1, 1]], z=[p[-1, 2]], mode="markers", showlegend=False,
+                                       marker=dict(color=AGENT_COLOURS[agent], size=5, symbol="diamond"),
+                                       hovertext=f"{AGENTS[agent]} at step {k}", hoverinfo="text"))
+        return traces
+
+    fixed = [
+        go.Scatter3d(x=[path[0, a, 0]], y=[path[0, a, 1]], z=[path[0, a, 2]], mode="markers", name=f"{AGENTS[a]} start",
+                     marker=dict(color=AGENT_COLOURS[a], size=6, symbol="circle-open"))
+        for a in agents
+    ]
+    fixed += [go.Scatter3d(x=[0], y=[0], z=[0], mode="markers", name="terminal", marker=dict(color="black", size=4)),
+              sphere(game.terminal_sphere_radius)]
+    end = path[-1]
+    if episode.outcome == Outcome.CAPTURED:
+        fixed.append(go.Scatter3d(x=[end[TARGETER, 0]], y=[end[TARGETER, 1]], z=[end[TARGETER, 2]], mode="markers",
+                                  name="capture of T", marker=dict(color="black", size=7, symbol="x")))
+    elif episode.outcome == Outcome.ATTACKER_INTERCEPTED:
+        fixed.append(go.Scatter3d(x=[end[ATTACKER, 0]], y=[end[ATTACKER, 1]], z=[end[ATTACKER, 2]], mode="markers",
+                                  name="capture of A", marker=dict(color="black", size=7, symbol="x")))
+    fig = go.Figure(data=moving(steps) + fixed)
+    moving_traces = list(range(2 * len(agents)))
+    fig.frames = [go.Frame(data=moving(k), traces=moving_traces, name=str(k)) for k in range(steps + 1)]
+    # Equal, fixed axes: turns keep their shape and the scene does not jump between frames.
+    points = np.vstack((path.reshape(-1, 3), np.zeros((1, 3))))
+    centre = (points.max(axis=0) + points.min(axis=0)) / 2
+    half = max(np.max(points.max(axis=0) - points.min(axis=0)) / 2, game.terminal_sphere_radius) * 1.05
+    axes = {name: dict(range=[centre[i] - half, centre[i] + half], title=name) for i, name in enumerate("xyz")}
+    slider = dict(active=steps, currentvalue=dict(prefix="step "), pad=dict(t=30), steps=[
+        dict(label=str(k), method="animate", args=[[str(k)], dict(mode="immediate", frame=dict(duration=0, redraw=True),
+                                                                  transition=dict(duration=0))])
+        for k in range(steps + 1)
+    ])
+    play = dict(type="buttons", showactive=False, x=0.0, y=0.0, xanchor="left", yanchor="top", direction="left", buttons=[
+        dict(label="play", method="animate",
+             args=[None, dict(frame=dict(duration=80, redraw=True), fromcurrent=True, transition=dict(duration=0))]),
+        dict(label="pause", method="animate", args=[[None], dict(mode="immediate", frame=dict(duration=0, redraw=False))]),
+    ])
+    fig.update_layout(
+        title=f"{episode.side} {episode.label}: {episode.outcome.label} after {steps} steps<br><sub>{episode.matchup}</sub>",
+        scene=dict(xaxis=axes["x"], yaxis=axes["y"], zaxis=axes["z"], aspectmode="cube"),
+        sliders=[slider], updatemenus=[play], height=620, margin=dict(l=0, r=0, t=70, b=0),
+        legend=dict(x=0, y=1, font_size=10),
+    )
+    return fig
+
+
+def write(data: "ReportData", out: Path) -> None:
+    """Write the page to ``out`` (through a temporary file: never a half-written report)."""
+    parts = [
+        f"<h1>Report: {html.escape(data.run.name)}</h1>", f"<p>{html.escape(data.summary)}</p>",
+        "<h2>Table 1 analogue</h2>",
+        "<p>The newest attacker snapshot of each reward method against the paper's training opponent (T to the "
+        "terminal while avoiding A, D pursuing A). The paper's starting positions are not published, so compare the "
+        "ordering, not the values.</p>",
+        html_table(TABLE_ONE_HEADER, table_one_rows(data)),
+        "<h2>Payoff matrix</h2>", figure_div(payoff_figure(data), "payoff"),
+        "<h2>Ratings</h2>", figure_div(ratings_figure(data), "ratings"), f"<p>{html.escape(RATINGS_NOTE)}</p>", html_table(RATINGS_HEADER, rating_rows(data)),
+        "<h2>Learner win rates in training</h2>",
+        figure_div(line_figure(data.win_rates, data.phases, "win rate in training", "learner win rates (per iteration)"),
+                   "win-rates"),
+        "<h2>Episode returns</h2>",
+        figure_div(line_figure(data.returns, data.phases, "mean episode return", "episode returns of the learners"),
+                   "returns"),
+        "<h2>Trajectories</h2>",
+        "<p class='note'>Drag to rotate, scroll to zoom; the slider and the play button step through the game.</p>",
+        "<div class='scenes'>",
+    ]
+    for episode in data.episodes:
+        parts.append("<div>" + figure_div(trajectory_figure(episode, data.run.game),
+                                          f"trajectory-{episode.side}-{episode.label}") + "</div>")
+    parts.append("</div>")
+    parts += [f"<p class='note'>{html.escape(text)}</p>" for text in data.missing_episodes]
+    page = (
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+        f"<title>Report: {html.escape(data.run.name)}</title><style>{PAGE_STYLE}</style>"
+        f"<script type='text/javascript'>{get_plotlyjs()}</script></head><body>" + "\n".join(parts) + "</body></html>"
+    )
+    partial = out.with_name(out.name + ".partial")
+    partial.write_text(page, encoding="utf-8")
+    partial.replace(out)

@@ -1,0 +1,147 @@
+"""What the report and the league's numbers show: games counted once, the HTML page in a browser, progress lines."""
+
+import re
+import shutil
+import sqlite3
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from envs.agents import ATTACKER, DEFENDER
+from league.browser_check import check_page, find_chromium
+from league.evaluate import main as evaluate_main
+from league.evaluation import wilson_interval
+from league.payoff import ATTACKER_WINS, aggregate
+from league.report import build_report
+from league.report_html import AGENT_COLOURS
+from league.store import LeagueStore
+
+
+@pytest.fixture
+def run_copy(tiny_run, tmp_path):
+    """A copy of the tiny run that a test may change."""
+    copy = tmp_path / "run"
+    shutil.copytree(tiny_run, copy)
+    return copy
+
+
+def pair_numbers(run_dir):
+    """Each frozen pair's (attacker wins, games) as the report and the ratings count them, and the players' games."""
+    store = LeagueStore(run_dir)
+    try:
+        frozen = {p.id for p in store.players() if p.kind != "learner"}
+        payoff = aggregate(store.newest_evaluation_rows(), ATTACKER_WINS)
+        counted = aggregate(store.counted_results(), ATTACKER_WINS)
+        return {pair: n for pair, n in payoff.items() if set(pair) <= frozen}, counted, store.latest_ratings()
+    finally:
+        store.close()
+
+
+def test_repeated_evaluation_leaves_games_and_interval_unchanged(run_copy):
+    before, counted_before, _ = pair_numbers(run_copy)
+    assert before, "the tiny run evaluates its frozen pairs at the end"
+    # The run's own evaluation played 10 games per pair; play the same fixed games twice more.
+    for _ in range(2):
+        assert evaluate_main(["--run-dir", str(run_copy), "--episodes", "10", "--workers", "0"]) == 0
+    after, counted_after, ratings = pair_numbers(run_copy)
+    assert after == before
+    assert {pair: wilson_interval(*after[pair]) for pair in after} == {pair: wilson_interval(*before[pair]) for pair in before}
+    assert counted_after == counted_before
+    with sqlite3.connect(run_copy / "league.db") as db:
+        players = {row[0] for row in db.execute("SELECT id FROM players")}
+    assert set(ratings) == players  # every player played, so every player is rated (none left at a prior)
+
+
+def test_a_newer_evaluation_with_more_games_replaces_the_old_one(run_copy):
+    before, _, _ = pair_numbers(run_copy)
+    assert evaluate_main(["--run-dir", str(run_copy), "--episodes", "25", "--workers", "0"]) == 0
+    after, _, _ = pair_numbers(run_copy)
+    assert set(after) == set(before) and {n for _, n in after.values()} == {25}
+
+
+def test_progress_log_is_one_plain_line_per_iteration_under_its_own_phase(tiny_run):
+    lines = (tiny_run.parent / "run.log").read_text().splitlines()
+    progress = [line for line in lines if " | iter " in line]
+    with sqlite3.connect(tiny_run / "league.db") as db:
+        phases = dict(db.execute("SELECT iteration, phase FROM iterations"))
+    assert len(progress) == len(phases)
+    pattern = re.compile(
+        r"^\d\d:\d\d:\d\d phase (\d)/2 (attacker|team) +\| iter +(\d+) \| +\d+ env steps \| +\d+ steps/s \| "
+        r"sample \d+\.\d s, learn \d+\.\d s(, eval \d+\.\d s)? \| (attacker|team) win rate (\d\.\d\d) over (\d+) ep"
+    )
+    for line in progress:
+        match = pattern.match(line)
+        assert match, line
+        phase, iteration, episodes = int(match[1]), int(match[3]), int(match[7])
+        assert phase == phases[iteration] + 1  # the iteration that ends a phase is printed under that phase
+        assert episodes > 0
+    assert not any("progress.py" in line for line in lines)
+
+
+@pytest.fixture(scope="module")
+def report_dir(tiny_run):
+    build_report(tiny_run)
+    return tiny_run / "report"
+
+
+def test_report_page_is_self_contained_with_a_3d_scene_per_shown_game(report_dir):
+    page = (report_dir / "index.html").read_text()
+    assert "<script src" not in page and "<link" not in page  # nothing to fetch (the browser check also watches)
+    assert "plotly.js v" in page  # the library itself is inside
+    shown = sorted(p.name for p in report_dir.glob("trajectory_*.png"))
+    scenes = re.findall(r"id=\"(trajectory-\w+-\w+)\"", page)
+    assert sorted(s.replace("-", "_") + ".png" for s in scenes) == shown
+    text = (report_dir / "report.md").read_text()
+    for side in ("attacker", "team"):  # a missing won or lost game is said, not left out silently
+        for label in ("won", "lost"):
+            if f"trajectory_{side}_{label}.png" not in shown:
+                assert ("never won" if label == "won" else "never lost") in text
+
+
+def colour_pixels(png: bytes, hex_colour: str, tolerance: int = 40) -> int:
+    """Pixels within ``tolerance`` per channel of ``hex_colour`` (antialiasing and lighting shift the shade)."""
+    import io
+
+    image = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+    target = np.array([int(hex_colour[i : i + 2], 16) for i in (1, 3, 5)])
+    return int(np.all(np.abs(image - target) <= tolerance, axis=-1).sum())
+
+
+def test_report_page_opens_in_a_browser_without_errors_and_draws_the_3d_scene(report_dir, tmp_path):
+    chromium = find_chromium()
+    if chromium is None:
+        pytest.skip("no Chromium installed (Debian: apt-get install chromium): the browser check cannot run")
+    check = check_page(report_dir / "index.html", chromium)
+    assert check.errors == []
+    assert check.fetched == []  # opens offline: nothing but the file itself is requested
+    scenes = len(list(report_dir.glob("trajectory_*.png")))
+    assert check.scenes == scenes > 0
+    assert check.figures == scenes + 4  # payoff, ratings, win rates, returns
+    (tmp_path / "scene.png").write_bytes(check.screenshot)
+    # The scene is drawn (WebGL), not only its frame: the agents' paths are in the screenshot.
+    for agent in (ATTACKER, DEFENDER):
+        assert colour_pixels(check.screenshot, AGENT_COLOURS[agent]) > 200, agent
+
+
+def test_browser_check_reports_console_errors(tmp_path):
+    chromium = find_chromium()
+    if chromium is None:
+        pytest.skip("no Chromium installed (Debian: apt-get install chromium): the browser check cannot run")
+    page = tmp_path / "broken.html"
+    page.write_text("<html><body><script>console.error('bad thing'); missingFunction();</script></body></html>")
+    check = check_page(page, chromium, settle_seconds=0.5)
+    assert any("bad thing" in e for e in check.errors) and any("missingFunction" in e for e in check.errors)
+
+
+def test_status_of_a_finished_run_says_finished_with_its_average_speed(tiny_run):
+    from league.status import run_line
+
+    store = LeagueStore(tiny_run)
+    try:
+        last, seconds = store.last_iteration(), store.training_seconds()
+        line = run_line(store)
+    finally:
+        store.close()
+    assert line.startswith(f"finished: iteration {last['iteration']}, {last['env_steps']} env steps")
+    assert line.endswith(f"{last['env_steps'] / seconds:.0f} env steps/s on average")
