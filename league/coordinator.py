@@ -32,6 +32,7 @@ from league.payoff import aggregate, elo_ratings, win_rate
 from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
 from league.progress import ProgressReporter
+from league.run_dir import write_manifest
 from league.store import LeagueStore
 
 ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
@@ -302,13 +303,19 @@ class Coordinator:
         }
 
     def checkpoint(self) -> Path:
-        """Write the algorithm to a temporary directory, then rename it into place."""
+        """Write the algorithm and its manifest to a temporary directory, then rename it into
+        place; a failure (a full disk, a stop signal) removes the temporary directory."""
         final = self.run_dir / "checkpoints" / f"iter_{self.state.iteration:06d}"
         partial = final.with_name(final.name + ".partial")
         for stale in (partial, final):
             if stale.exists():
                 shutil.rmtree(stale)
-        self.algo.save_to_path(str(partial))
+        try:
+            self.algo.save_to_path(str(partial))
+            write_manifest(partial)
+        except BaseException:
+            shutil.rmtree(partial, ignore_errors=True)
+            raise
         partial.rename(final)
         return final
 
