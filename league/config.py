@@ -188,8 +188,12 @@ def _read_yaml(path: Path) -> dict[str, Any]:
         raise ConfigError(f"{path} is a directory, not a YAML file" if path.is_dir() else f"{path} is not a file")
     try:
         data = yaml.safe_load(path.read_text()) or {}
+    except yaml.MarkedYAMLError as err:
+        mark = err.problem_mark
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        raise ConfigError(f"{path}: not valid YAML ({where}{err.problem or err.context})") from err
     except (yaml.YAMLError, UnicodeDecodeError) as err:
-        raise ConfigError(f"{path}: not valid YAML: {' '.join(str(err).split())}") from err
+        raise ConfigError(f"{path}: not valid YAML ({err})") from err
     except OSError as err:
         raise ConfigError(f"{path} cannot be read: {err.strerror}") from err
     if not isinstance(data, dict):

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import shutil
 import time
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
@@ -33,6 +34,7 @@ from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
 from league.progress import ProgressReporter
 from league.run_dir import write_manifest
+from league.stop import StopRequests
 from league.store import LeagueStore
 
 ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
@@ -151,11 +153,12 @@ class Coordinator:
         return plan, weights
 
     # ------------------------------------------------------------ iteration
-    def train_iteration(self, progress: ProgressReporter) -> None:
+    def train_iteration(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
         plan, weights = self.match_plan()
         bridge.set_match_plan(self.algo, plan)
         started = time.perf_counter()
-        result = self.algo.train()
+        with stop.interruptible() if stop else nullcontext():
+            result = self.algo.train()
         seconds = time.perf_counter() - started
         self.report_runner_health()
 
@@ -326,8 +329,11 @@ class Coordinator:
                 shutil.rmtree(directory, ignore_errors=True)
 
     # ------------------------------------------------------------ whole run
-    def train(self, progress: ProgressReporter) -> None:
+    def train(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
+        """Train to the end; ``stop`` (SIGINT, SIGTERM) ends it between iterations or during sampling and learning."""
         self.log = progress.message
         self.set_trainable(self.state.phase.side)
         while not self.state.training_done:
-            self.train_iteration(progress)
+            if stop:
+                stop.check()
+            self.train_iteration(progress, stop)

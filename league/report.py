@@ -29,7 +29,8 @@ from league.config import RunConfig, saved_run_config
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
 from league.payoff import aggregate
 from league.players import Player
-from league.store import DB_NAME, LeagueStore
+from league.run_dir import RunDirError, open_run
+from league.store import LeagueStore
 
 ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 # The paper's Table 1: A's winning percentage over 100 test rounds per method.
@@ -214,8 +215,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m league.report", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
     args = parser.parse_args(argv)
-    if not (args.run_dir / DB_NAME).exists():
-        print(f"error: no league database at {args.run_dir / DB_NAME}", file=sys.stderr)
+    try:
+        open_run(args.run_dir)[1].close()  # checks config.yaml and league.db, one line if damaged
+    except RunDirError as err:
+        print(f"error: {err}", file=sys.stderr)
         return 2
     print(f"report written to {build_report(args.run_dir.resolve())}")
     return 0

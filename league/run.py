@@ -13,12 +13,23 @@ what it wrote.
 
 from __future__ import annotations
 
+import signal
+import sys
+
+
+def _stopped_while_importing(signum: int, frame: object) -> None:
+    print("stopped while starting; nothing was written", file=sys.stderr)
+    raise SystemExit(128 + signum)
+
+
+if __name__ == "__main__":  # the imports below take seconds (torch, Ray); main() installs the real handlers
+    for _signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(_signum, _stopped_while_importing)
+
 import argparse
 import json
 import logging
 import shutil
-import signal
-import sys
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -44,31 +55,10 @@ from league.run_dir import (
     record_config,
     usable_checkpoints,
 )
+from league.stop import StopRequests, Stopped
 from league.store import DB_NAME, LeagueStore
 
 EVALUATION_FILE = "evaluation.md"
-
-
-class Stopped(KeyboardInterrupt):
-    """SIGINT or SIGTERM arrived; raised in the main thread like Ctrl-C's KeyboardInterrupt."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-    @property
-    def exit_code(self) -> int:
-        return 128 + self.signum  # the shell's convention: 130 for SIGINT, 143 for SIGTERM
-
-
-def _raise_stopped(signum: int, frame: object) -> None:
-    raise Stopped(signum)
-
-
-def handle_stop_signals(handler=_raise_stopped) -> None:
-    # Ray's driver installs its own SIGTERM handler (``sys.exit``) in ``ray.init``: call this after it.
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, handler)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -109,8 +99,8 @@ def start_ray(run: RunConfig, address: str | None) -> None:
         )
 
 
-def new_run(run: RunConfig, run_dir: Path) -> Coordinator:
-    """Create the run and commit its first checkpoint; on any failure, remove what was written."""
+def new_run(run: RunConfig, run_dir: Path, stop: StopRequests) -> Coordinator:
+    """Create the run and commit its first checkpoint; on any failure or stop, remove what was written."""
     from league import rllib_bridge as bridge
 
     store = None
@@ -133,12 +123,14 @@ def new_run(run: RunConfig, run_dir: Path) -> Coordinator:
         first_team = store.players(side="team", kind="scripted")[0]
         plan = bridge.MatchPlan([first_attacker.modules()], [[first_team.modules()]], [[1.0]], run.seed)
         algo = bridge.build_config(run, store.players(), plan).build_algo()
+        stop.check()
         coordinator = Coordinator(run, run_dir, store, algo, state)
         coordinator.rng = np.random.default_rng(run.seed)
         # The untrained policies join the league as version 0: the baseline every later
         # snapshot is measured against.
         initial = [coordinator.snapshot(learner) for learner in store.players(kind="learner")]
         checkpoint = coordinator.checkpoint()
+        stop.check()
         with store.transaction():
             for columns in initial:
                 store.add_player(0, **columns)
@@ -255,36 +247,37 @@ def stopped_message(run_dir: Path, store: LeagueStore | None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    handle_stop_signals()
+    stop = StopRequests()
+    stop.install()
     try:
         run, run_dir, store, lock, created = open_for_training(args)
     except (ConfigError, RunDirError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    except Stopped as stop:
-        print("stopped before the run started; nothing was written", file=sys.stderr)
-        return stop.exit_code
 
     import ray
 
     progress = None
     try:
-        start_ray(run, args.address)
-        handle_stop_signals()
+        with stop.held_by_main_thread():
+            start_ray(run, args.address)
+            stop.install()
+        stop.check()
         if args.resume:
             progress = ProgressReporter(run_dir, phase_count(run))
             coordinator = resume_run(run_dir, run, store, progress.message)
         else:
-            coordinator = new_run(run, run_dir)
+            coordinator = new_run(run, run_dir, stop)
             store = coordinator.store
             progress = ProgressReporter(run_dir, phase_count(run))
         progress.message(
             f"run directory {run_dir} ({'resumed at iteration ' + str(coordinator.state.iteration) if args.resume else 'new'})"
         )
         started = time.perf_counter()
-        coordinator.train(progress)
+        coordinator.train(progress, stop)
         if coordinator.store.get_meta("evaluated_iteration") != coordinator.state.iteration:
-            evaluate_league(coordinator, progress)
+            with stop.interruptible():
+                evaluate_league(coordinator, progress)
         if coordinator.evaluation_pool is not None:
             coordinator.evaluation_pool.close()
         progress.message(f"done in {time.perf_counter() - started:.0f} s: {run_dir}")
@@ -293,18 +286,18 @@ def main(argv: list[str] | None = None) -> int:
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    except Stopped as stop:
-        handle_stop_signals(signal.SIG_IGN)  # a second Ctrl-C must not interrupt the shutdown below
+    except Stopped as stopped:
+        stop.ignore()  # a second Ctrl-C must not break the shutdown below
         print(stopped_message(run_dir, store), file=sys.stderr)
-        return stop.exit_code
+        return stopped.exit_code
     except Exception as err:
         if not is_disk_full(err):
             raise
-        handle_stop_signals(signal.SIG_IGN)
+        stop.ignore()
         print(f"error: {disk_full_message(run_dir, store)}", file=sys.stderr)
         return 2
     finally:
-        handle_stop_signals(signal.SIG_IGN)
+        stop.ignore()
         if progress is not None:
             progress.close()
         ray.shutdown()

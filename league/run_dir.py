@@ -63,9 +63,7 @@ def read_config(run_dir: Path) -> RunConfig:
     try:
         return saved_run_config(run_dir)
     except ConfigError as err:
-        raise RunDirError(
-            f"{err} (the run's own copy of its config: restore it, e.g. from the config the run was started with)"
-        ) from err
+        raise RunDirError(f"{err}; restore the config the run was started with") from err
 
 
 def open_run(run_dir: Path) -> tuple[RunConfig, LeagueStore]:

@@ -126,7 +126,7 @@ class LeagueStore:
         """Raise ``DamagedStoreError`` unless the file is an intact SQLite database with the league's tables."""
         (verdict,) = self.db.execute("PRAGMA quick_check(1)").fetchone()
         if verdict != "ok":
-            raise DamagedStoreError(f"{self.path} is damaged (integrity check: {verdict})")
+            raise DamagedStoreError(f"{self.path} is damaged (integrity check: {' '.join(verdict.split())})")
         tables = {name for (name,) in self.db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
         missing = [t for t in TABLES if t not in tables]
         if missing:
