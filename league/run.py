@@ -247,13 +247,13 @@ def stopped_message(run_dir: Path, store: LeagueStore | None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    stop = StopRequests()
-    stop.install()
     try:
         run, run_dir, store, lock, created = open_for_training(args)
     except (ConfigError, RunDirError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    stop = StopRequests()
+    stop.install()
 
     import ray
 
@@ -304,6 +304,7 @@ def main(argv: list[str] | None = None) -> int:
         lock.release()
         if created and store is None:  # a new run that failed before its first checkpoint
             shutil.rmtree(run_dir, ignore_errors=True)
+        stop.restore()
 
 
 if __name__ == "__main__":

@@ -36,6 +36,7 @@ class StopRequests:
     def __init__(self) -> None:
         self.signum: int | None = None
         self._raise_now = False
+        self._previous = {signum: signal.getsignal(signum) for signum in SIGNALS}
 
     def install(self) -> None:
         """Take over both signals (again after ``ray.init``, which installs its own SIGTERM handler)."""
@@ -47,6 +48,11 @@ class StopRequests:
         """From now on ignore both (a second Ctrl-C must not break the shutdown)."""
         for signum in SIGNALS:
             signal.signal(signum, signal.SIG_IGN)
+
+    def restore(self) -> None:
+        """Give both signals back to the handlers they had before (``main`` may run inside a test)."""
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
 
     def _handle(self, signum: int, frame: object) -> None:
         if self.signum is None:
