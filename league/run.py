@@ -146,14 +146,24 @@ def new_run(run: RunConfig, run_dir: Path, stop: StopRequests) -> Coordinator:
         raise
 
 
+def intact_checkpoints(run_dir: Path, store: LeagueStore) -> tuple[list[tuple[int, str]], list[str]]:
+    """``usable_checkpoints``, or a ``RunDirError`` when there is none to resume from."""
+    usable, problems = usable_checkpoints(run_dir, store)
+    if usable:
+        return usable, problems
+    if not problems:
+        raise RunDirError(
+            f"{run_dir} has no checkpoint: its first start was killed before it made one; "
+            f"delete it (rm -r {run_dir}) and start the run again"
+        )
+    raise RunDirError(f"{run_dir} has no intact checkpoint to resume from ({'; '.join(problems)}): start a new run")
+
+
 def resume_run(run_dir: Path, run: RunConfig, store: LeagueStore, say) -> Coordinator:
     """Restore the newest intact checkpoint; roll the database back to it."""
     from ray.rllib.algorithms.algorithm import Algorithm
 
-    usable, problems = usable_checkpoints(run_dir, store)
-    if not usable:
-        why = "; ".join(problems) or "no checkpoint was ever recorded (the first start was stopped early)"
-        raise RunDirError(f"{run_dir} has no intact checkpoint to resume from ({why}): start a new run")
+    usable, problems = intact_checkpoints(run_dir, store)
     iteration, path = usable[0]
     last_committed = (store.last_iteration() or {}).get("iteration", 0)
     store.rollback_after(iteration)
@@ -171,7 +181,7 @@ def resume_run(run_dir: Path, run: RunConfig, store: LeagueStore, say) -> Coordi
     return Coordinator(run, run_dir, store, algo, RunState.from_json(state_json))
 
 
-def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Path:
+def evaluate_league(coordinator: Coordinator, progress: ProgressReporter, stop: StopRequests) -> Path:
     """Every frozen attacker against every frozen team on the fixed evaluation games."""
     store, run = coordinator.store, coordinator.run
     frozen = [p for p in store.players() if p.kind != "learner"]
@@ -179,10 +189,11 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
     teams = [p for p in frozen if p.side == "team"]
     pairs = [(attacker, team) for attacker in attackers for team in teams]
     ev = run.evaluation
-    results = evaluate_pairs(
-        run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker, coordinator.evaluation_pool,
-        ev.custom_resources_per_worker,
-    )
+    with stop.interruptible():  # playing the games writes nothing
+        results = evaluate_pairs(
+            run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker,
+            coordinator.evaluation_pool, ev.custom_resources_per_worker,
+        )
     iteration = coordinator.state.iteration
     with store.transaction():
         store.db.execute("DELETE FROM matches WHERE source = 'evaluation' AND iteration = ?", (iteration,))
@@ -216,6 +227,7 @@ def open_for_training(args: argparse.Namespace) -> tuple[RunConfig, Path, League
         try:
             run, store = open_run(run_dir)
             check_config_unchanged(run_dir, run, store)
+            intact_checkpoints(run_dir, store)  # before Ray starts: fail fast
         except BaseException:
             lock.release()
             raise
@@ -276,8 +288,7 @@ def main(argv: list[str] | None = None) -> int:
         started = time.perf_counter()
         coordinator.train(progress, stop)
         if coordinator.store.get_meta("evaluated_iteration") != coordinator.state.iteration:
-            with stop.interruptible():
-                evaluate_league(coordinator, progress)
+            evaluate_league(coordinator, progress, stop)
         if coordinator.evaluation_pool is not None:
             coordinator.evaluation_pool.close()
         progress.message(f"done in {time.perf_counter() - started:.0f} s: {run_dir}")
