@@ -23,7 +23,7 @@ from pydantic import ValidationError
 from envs.config import GameConfig
 from league import evaluate, export, report, run, status
 from league.run_dir import LOCK_FILE, usable_checkpoints
-from league.store import LeagueStore
+from league.store import DB_NAME, TABLES, LeagueStore
 
 TINY = """
 name: tiny
@@ -143,6 +143,33 @@ def test_a_new_run_that_fails_while_building_removes_its_directory(tiny_config, 
     with pytest.raises(RuntimeError, match="cannot be built"):
         run.main(["--config", tiny_config(), "--run-dir", str(run_dir)])
     assert not run_dir.exists()
+
+
+# ------------------------------------------------------------------ the store
+def test_league_db_appears_only_with_its_schema(tmp_path, monkeypatch):
+    seen = []
+
+    def replace(source, target):
+        assert not Path(target).exists()  # nothing named league.db before this rename
+        db = sqlite3.connect(source)
+        seen.extend(name for (name,) in db.execute("SELECT name FROM sqlite_master WHERE type = 'table'"))
+        db.close()
+        return os_replace(source, target)
+
+    os_replace = os.replace
+    monkeypatch.setattr(os, "replace", replace)
+    LeagueStore(tmp_path, create=True).close()
+    assert set(TABLES) <= set(seen)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [DB_NAME]  # no partial or WAL file left
+
+
+def test_rollback_forgets_an_evaluation_of_a_later_iteration(tmp_path):
+    store = LeagueStore(tmp_path, create=True)
+    store.set_meta("evaluated_iteration", 4)
+    store.rollback_after(4)
+    assert store.get_meta("evaluated_iteration") == 4
+    store.rollback_after(3)  # iteration 4 and its evaluation rows will be redone
+    assert store.get_meta("evaluated_iteration") is None
 
 
 # ------------------------------------------------------------------ damaged state
@@ -278,24 +305,27 @@ def stop_and_check(proc, run_dir: Path, signum: int, exit_code: int) -> int:
 
 def test_lock_readers_and_stops_by_signal_keep_the_run_continuous(tmp_path, tiny_config):
     run_dir = (tmp_path / "run").resolve()
-    first = start("--config", tiny_config(3, 400), "--run-dir", str(run_dir))
+    first = start("--config", tiny_config(4, 600), "--run-dir", str(run_dir))
+    deadline = time.monotonic() + RUN_TIMEOUT
+    while not (run_dir / "league.db").exists():  # the lock is taken before the database is made
+        assert first.poll() is None and time.monotonic() < deadline, first.stdout.read()[-3000:]
+        time.sleep(0.2)
+
+    # While it runs: a second training process is refused at once, naming the holder;
+    # a reader needs no lock.
+    child = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE, "text": True, "env": child_env()}
+    second = subprocess.Popen([sys.executable, "-m", "league.run", "--resume", str(run_dir)], **child)
+    reader = subprocess.Popen([sys.executable, "-m", "league.status", "--run-dir", str(run_dir)], **child)
+    _, err = second.communicate(timeout=120)
+    assert second.returncode == 2 and f"is in use by process {first.pid}" in err, err
+    assert len(err.strip().splitlines()) == 1
+    out, err = reader.communicate(timeout=120)
+    assert reader.returncode == 0 and "scripted-lead_intercept" in out, err
+    assert first.poll() is None  # all of this happened while the run was running
+
     wait_for_iterations(first, run_dir, 2)
-
-    # A second process on the same directory: refused at once, naming the holder.
-    second = subprocess.run(
-        [sys.executable, "-m", "league.run", "--resume", str(run_dir)],
-        capture_output=True, text=True, timeout=120, env=child_env(),
-    )
-    assert second.returncode == 2 and f"is in use by process {first.pid}" in second.stderr, second.stderr
-    assert len(second.stderr.strip().splitlines()) == 1
-    # Readers need no lock.
-    reader = subprocess.run(
-        [sys.executable, "-m", "league.status", "--run-dir", str(run_dir)],
-        capture_output=True, text=True, timeout=120, env=child_env(),
-    )
-    assert reader.returncode == 0 and "scripted-lead_intercept" in reader.stdout, reader.stderr
-
     stopped_at = stop_and_check(first, run_dir, signal.SIGINT, 130)
+
     before = query(run_dir, "SELECT * FROM iterations ORDER BY iteration")
 
     resumed = start("--resume", str(run_dir))
@@ -313,7 +343,7 @@ def test_lock_readers_and_stops_by_signal_keep_the_run_continuous(tmp_path, tiny
     assert [row[0] for row in after] == list(range(1, len(after) + 1))  # no gap, no repeat
     assert after[-1][4] == query(run_dir, "SELECT SUM(count) FROM matches WHERE source = 'training'")[0][0]
     versions = query(run_dir, "SELECT side, version FROM players WHERE kind = 'snapshot' ORDER BY side, version")
-    assert versions == [("attacker", 0), ("attacker", 1), ("attacker", 2), ("team", 0), ("team", 1)]
+    assert versions == [("attacker", 0), ("attacker", 1), ("attacker", 2), ("team", 0), ("team", 1), ("team", 2)]
     assert query(run_dir, "PRAGMA integrity_check") == [("ok",)]
 
 
