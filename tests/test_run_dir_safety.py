@@ -386,3 +386,24 @@ def test_a_full_disk_is_one_line_and_keeps_the_previous_checkpoint(tmp_path, tin
     store = LeagueStore(run_dir)
     assert store.last_iteration()["iteration"] == 1  # iteration 2's transaction never committed
     assert usable_checkpoints(run_dir, store)[0][0] == (1, "checkpoints/iter_000001")
+
+
+# ------------------------------------------------------------------ PettingZoo input errors
+def test_pettingzoo_env_refuses_step_before_reset_nan_positions_and_complex_input():
+    import numpy as np
+
+    from envs.pettingzoo_env import TargetDefenseEnv
+
+    env = TargetDefenseEnv()
+    still = {agent: np.zeros(2) for agent in env.possible_agents}
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.step(still)
+    positions = np.array([[2.0, 0, 0], [0, 2.0, 0], [0, 2.2, 0]])
+    for bad in (np.where(np.eye(3, dtype=bool), np.nan, positions), positions + 1j, positions[:2]):
+        with pytest.raises(ValueError, match="positions"):
+            env.reset(options={"positions": bad})
+    env.reset(options={"positions": positions})
+    with pytest.raises(ValueError, match="complex"):
+        env.step({**still, "defender": np.array([0.5 + 0.5j, 0.0])})
+    _, rewards, terminations, _, _ = env.step(still)  # the refused steps left the game untouched
+    assert not any(terminations.values()) and set(rewards) == set(env.possible_agents)
