@@ -81,7 +81,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run-dir", type=Path, required=True)
     parser.add_argument("--episodes", type=count(1), help="fixed games per pair (default: the run's evaluation.episodes)")
     parser.add_argument("--players", nargs="+", help="player names (default: every snapshot and scripted player)")
-    parser.add_argument("--workers", type=count(0), help="evaluation actors, 0: in this process (default: the run's evaluation.workers)")
+    parser.add_argument(
+        "--workers", type=count(0), help="evaluation actors, 0: in this process (default: the run's evaluation.workers)"
+    )
     args = parser.parse_args(argv)
     try:
         run, store = open_run(args.run_dir)

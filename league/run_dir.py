@@ -143,10 +143,11 @@ def checkpoint_problem(checkpoint_dir: Path) -> str | None:
         return f"damaged ({MANIFEST_FILE} unreadable)"
     for name, (size, digest) in manifest.items():
         path = checkpoint_dir / name
-        if not path.is_file():
+        try:
+            if path.stat().st_size != size or _digest(path) != digest:
+                return f"damaged ({name} differs from what was written)"
+        except OSError:  # deleted, perhaps just now by a run pruning its old checkpoints
             return f"damaged ({name} missing)"
-        if path.stat().st_size != size or _digest(path) != digest:
-            return f"damaged ({name} differs from what was written)"
     return None
 
 
