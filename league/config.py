@@ -222,7 +222,7 @@ def load_config(name: str, overrides: list[str] | None = None) -> RunConfig:
         try:
             value = yaml.safe_load(raw)
         except yaml.YAMLError as err:
-            raise ConfigError(f"--set {item!r}: the value is not valid YAML ({err.problem})") from err
+            raise ConfigError(f"--set {item!r}: the value is not valid YAML ({getattr(err, 'problem', None) or err})") from err
         _set_dotted(data, key.strip(), value)
     return _validate(data, path)
 

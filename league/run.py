@@ -89,14 +89,16 @@ def prepare_new_run_dir(run: RunConfig, run_dir: Path | None) -> Path:
 def start_ray(run: RunConfig, address: str | None) -> None:
     import ray
 
-    if address:
-        ray.init(address=address, logging_level=logging.ERROR, log_to_driver=False)
-    else:
-        # "local": a private instance, even when RAY_ADDRESS is set or a `ray start` cluster runs here.
-        ray.init(
-            address="local", num_cpus=run.resources.num_cpus, include_dashboard=False,
-            logging_level=logging.ERROR, log_to_driver=False,
-        )
+    # "local": a private instance, even when RAY_ADDRESS is set or a `ray start` cluster runs here.
+    where = {"address": address} if address else {
+        "address": "local", "num_cpus": run.resources.num_cpus, "include_dashboard": False
+    }
+    try:
+        ray.init(logging_level=logging.ERROR, log_to_driver=False, **where)
+    except SystemExit as exit_:
+        if exit_.code == signal.SIGTERM:  # ray.init's own SIGTERM handler ends in sys.exit(15)
+            raise Stopped(signal.SIGTERM) from None
+        raise
 
 
 def new_run(run: RunConfig, run_dir: Path, stop: StopRequests) -> Coordinator:
