@@ -13,7 +13,8 @@ At the end it checks what the league relies on: ``PRAGMA integrity_check``, iter
 numbered 1..n without gap or repeat, the running episode total equal to the recorded
 training matches, every snapshot version present once per side and reward method with
 its saved module, no ``.partial`` left. It prints one line per kill and a summary; the
-exit code is 1 if a check failed.
+exit code is 1 if a check failed. A process that exits by itself (not killed) is
+reported and resumed, as a user would.
 """
 
 from __future__ import annotations
@@ -71,6 +72,11 @@ def wait_for_moment(proc: subprocess.Popen, run_dir: Path, rng: random.Random, c
     return f"{delay:.1f} s after iteration {committed(run_dir)} was committed"
 
 
+def last_error(log_path: Path) -> str:
+    lines = [line.strip() for line in log_path.read_text().splitlines() if line.strip()]
+    return lines[-1][:200] if lines else ""
+
+
 def check(run_dir: Path) -> list[str]:
     """What is wrong with the finished run (empty: nothing)."""
     problems = []
@@ -111,23 +117,32 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--cycle-seconds", type=float, default=6.0, help="kill at most this long after a commit")
     parser.add_argument("--startup-seconds", type=float, default=40.0, help="or at most this long after launch")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="passed to league.run (e.g. a longer run: league.phase_env_steps=96000)")
     args = parser.parse_args()
     rng = random.Random(args.seed)
     run_dir = args.run_dir.resolve()
     log_path = run_dir.with_name(run_dir.name + ".log")
     started = time.perf_counter()
     exits: Counter = Counter()
-    unexpected = []
+    unexpected: list[str] = []
+    failures: list[str] = []  # exits nobody caused (e.g. Ray's start-up timeout on an overloaded machine)
     with log_path.open("w") as log:
-        proc = launch(["--config", args.config, "--run-dir", str(run_dir)], log)
+        new_run = ["--config", args.config, "--run-dir", str(run_dir), *(f"--set={o}" for o in args.overrides)]
+        proc = launch(new_run, log)
         kills = 0
         while kills < args.kills:
             moment = wait_for_moment(proc, run_dir, rng, args.cycle_seconds, args.startup_seconds)
-            if proc.poll() is not None:  # finished (or failed) before the kill: nothing to stop
-                print(f"run ended by itself with exit {proc.returncode} before kill {kills + 1}", flush=True)
-                if proc.returncode != 0:
-                    unexpected.append(f"exit {proc.returncode} without a kill")
+            if proc.poll() == 0:  # finished before the kill
+                print(f"the run finished before kill {kills + 1}", flush=True)
                 break
+            if proc.poll() is not None:  # failed by itself: say so, and resume (a user would retry)
+                failures.append(f"before kill {kills + 1}: exit {proc.returncode}: {last_error(log_path)}")
+                print(f"run failed by itself before kill {kills + 1}: {failures[-1]}", flush=True)
+                if len(failures) > args.kills:
+                    break
+                proc = launch(["--resume", str(run_dir)], log)
+                continue
             name = rng.choice(sorted(SIGNALS))
             if name == "SIGTERM":
                 os.kill(proc.pid, SIGNALS[name])
@@ -144,7 +159,7 @@ def main() -> int:
                 unexpected.append(f"kill {kills}: {name} gave exit {code}")
             if fresh:
                 shutil.rmtree(run_dir, ignore_errors=True)
-                proc = launch(["--config", args.config, "--run-dir", str(run_dir)], log)
+                proc = launch(new_run, log)
             else:
                 proc = launch(["--resume", str(run_dir)], log)
         code = proc.wait()
@@ -154,8 +169,11 @@ def main() -> int:
     iterations = committed(run_dir)
     print(
         f"{kills} kills ({', '.join(f'{n} {s}->exit {c}' for (s, c), n in sorted(exits.items()))}), "
-        f"{iterations} iterations, {time.perf_counter() - started:.0f} s; log {log_path}"
+        f"{iterations} iterations, {len(failures)} exits nobody caused, {time.perf_counter() - started:.0f} s; "
+        f"log {log_path}"
     )
+    for failure in failures:
+        print(f"  not caused by a kill: {failure}")
     print("all checks passed" if not problems else "PROBLEMS:\n  " + "\n  ".join(problems))
     return 1 if problems else 0
 

@@ -18,7 +18,7 @@ TEAM = Player(id=2, side="team", kind="scripted", version=0, scripted_targeter="
 
 @pytest.fixture(scope="module")
 def ray_instance():
-    ray.init(num_cpus=2, include_dashboard=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False)  # private: other Ray instances may run here
     yield
     ray.shutdown()
 
