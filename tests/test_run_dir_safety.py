@@ -5,7 +5,6 @@ The cheap checks call the CLIs' ``main`` in this process on copies of the sessio
 finished ``tiny_run``; the lock, the signals and the full disk are real processes.
 """
 
-import errno
 import math
 import os
 import shutil
