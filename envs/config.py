@@ -1,8 +1,8 @@
 """Game parameters: one validated object shared by the core, the adapters and the league.
 
 Defaults follow ``shared/paper.md`` section 5 as read by ``shared/design.md`` section 1.
-Unknown keys, wrong types and impossible values raise ``pydantic.ValidationError``
-naming the key.
+Unknown keys, wrong types, infinite or NaN floats and impossible values raise
+``pydantic.ValidationError`` naming the key.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ Method2Direction = Literal["chord", "heading"]
 class GameConfig(BaseModel):
     """Everything that defines one game of 3D cooperative target defense."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     v_attacker: PositiveFloat = 0.18
     """Distance A moves per step."""

@@ -35,8 +35,9 @@ class TargetDefenseEnv(ParallelEnv):
     | 0     | yaw     | 0     | 2 pi  |
     | 1     | pitch   | -pi/2 | pi/2  |
 
-    Both modes reach the same headings. Values outside the box are clipped; NaN or a
-    wrong shape raise ``ValueError``.
+    Both modes reach the same headings. Values outside the box are clipped; NaN, complex
+    values or a wrong shape raise ``ValueError``; ``step()`` before ``reset()`` or after
+    the game ended raises ``RuntimeError``.
 
     ## Observation Space
     ``Box(-inf, inf)``; layouts ``paper`` (15 numbers, 17 for T and D) and ``rich`` (25,
@@ -68,7 +69,8 @@ class TargetDefenseEnv(ParallelEnv):
     ## Starting State
     Positions drawn from the scenario set ``scenario`` (``envs.scenarios``) with the
     seeded generator, or given as ``reset(options={"positions": array (3 agents, 3)})``
-    to replay a fixed game; all headings yaw = pitch = 0.
+    to replay a fixed game (finite real numbers, else ``ValueError``); all headings
+    yaw = pitch = 0.
 
     ## Episode End
     All are *terminations* of all three agents, with ``infos[agent]["outcome"]``:
@@ -108,10 +110,23 @@ class TargetDefenseEnv(ParallelEnv):
         return self.action_spaces[agent]
 
     def reset(self, seed: int | None = None, options: dict | None = None):
+        positions = (options or {}).get("positions")
+        if positions is not None:
+            positions = np.asarray(positions)
+            if positions.shape != (len(AGENTS), 3):
+                raise ValueError(f"options['positions'] must have shape ({len(AGENTS)}, 3), got {positions.shape}")
+            if not np.isrealobj(positions) or not np.all(np.isfinite(positions)):
+                raise ValueError(f"options['positions'] must be finite real numbers, got {positions.tolist()}")
+        observations = self.game.reset(seed, positions)
         self.agents = list(AGENTS)
-        return self.game.reset(seed, (options or {}).get("positions"))
+        return observations
 
     def step(self, actions: dict[str, np.ndarray]):
+        if not self.agents:
+            raise RuntimeError("no game is running: call reset() before step() (and again after a game ends)")
+        for agent, action in actions.items():
+            if np.iscomplexobj(action):
+                raise ValueError(f"action of {agent!r} is complex: {action}; actions are real (yaw, pitch) turns")
         obs, rewards, done, infos = self.game.step(actions)
         terminations = {agent: done for agent in self.agents}
         truncations = {agent: False for agent in self.agents}

@@ -1,15 +1,18 @@
 """Run configuration: YAML files in ``configs/`` validated by these pydantic models.
 
-Every model forbids unknown keys, so a typo stops the run with the key's name.
-``load_config`` turns any problem (missing file, bad YAML, invalid value) into a
-``ConfigError`` whose message names the file and the key; ``league.run`` prints it
-and exits with code 2 before anything is written.
+Every model forbids unknown keys, so a typo stops the run with the key's name, and
+rejects infinite and NaN floats. ``load_config`` (a config file) and ``saved_run_config``
+(the copy a run keeps) turn any problem (missing file, bad YAML, invalid value) into a
+``ConfigError`` whose message names the file and the key; the CLIs print it and exit
+with code 2 before anything is written.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -27,7 +30,7 @@ class ConfigError(ValueError):
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class PPOSettings(Strict):
@@ -43,7 +46,7 @@ class PPOSettings(Strict):
     train_batch_size: int = Field(4000, ge=32, description="env steps per training iteration")
     minibatch_size: int = Field(500, ge=8)
     num_epochs: int = Field(5, ge=1)
-    hidden: list[int] = Field(default_factory=lambda: [64, 64], min_length=1)
+    hidden: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [64, 64], min_length=1)
     """Hidden layer sizes of both the policy and the value network."""
 
 
@@ -55,7 +58,7 @@ class Resources(Strict):
     num_env_runners: int = Field(0, ge=0)
     num_envs_per_env_runner: int = Field(8, ge=1)
     num_cpus_per_env_runner: float = Field(1, gt=0)
-    custom_resources_per_env_runner: dict[str, float] = Field(default_factory=dict)
+    custom_resources_per_env_runner: dict[str, Annotated[float, Field(gt=0)]] = Field(default_factory=dict)
     """Custom Ray resources each env runner needs, e.g. ``{sampler: 1}`` to place runners
     on the nodes started with that resource (``ray start --resources``)."""
     sampler: Literal["fast", "batched", "standard"] = "fast"
@@ -66,8 +69,8 @@ class Resources(Strict):
     two are kept for comparison and debugging."""
     torch_threads: int | None = Field(None, ge=1)
     """Torch threads in every process that runs torch (driver and learner, env runners,
-    evaluation workers); by default the CPUs given to that process, at least 1. Torch's own
-    default (all cores) made training 2 to 11 times slower on a loaded 2-core machine."""
+    evaluation workers); by default the CPUs given to that process, at least 1 (RLlib leaves
+    torch's default, all cores, whose threads then compete with the other processes)."""
 
     def threads_for(self, cpus: float) -> int:
         """Torch threads of a process that was given ``cpus`` CPUs."""
@@ -138,7 +141,7 @@ class EvaluationSettings(Strict):
     workers: int = Field(2, ge=0)
     """Ray actors that play the evaluation games (0: in the driver process)."""
     cpus_per_worker: float = Field(0.5, gt=0)
-    custom_resources_per_worker: dict[str, float] = Field(default_factory=dict)
+    custom_resources_per_worker: dict[str, Annotated[float, Field(gt=0)]] = Field(default_factory=dict)
     """Custom Ray resources each evaluation worker needs (workers are spread over the nodes)."""
     every_iterations: int = Field(0, ge=0)
     """Also evaluate the learners against their opponents every this many iterations (0: only at the end)."""
@@ -146,7 +149,8 @@ class EvaluationSettings(Strict):
 
 class RunConfig(Strict):
     name: str = Field(min_length=1)
-    seed: int = 0
+    seed: int = Field(0, ge=0, lt=2**32)
+    """Seeds every generator of the run; RLlib passes it to ``np.random.seed``, hence the bound."""
     game: GameConfig = Field(default_factory=GameConfig)
     ppo: PPOSettings = Field(default_factory=PPOSettings)
     resources: Resources = Field(default_factory=Resources)
@@ -160,7 +164,6 @@ class RunConfig(Strict):
         if self.ppo.minibatch_size > self.ppo.train_batch_size:
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
         return self
-
 
     @property
     def attacker_methods(self) -> list[int]:
@@ -189,20 +192,27 @@ def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
     node[keys[-1]] = value
 
 
-def load_config(name: str, overrides: list[str] | None = None) -> RunConfig:
-    """Read, override (``key.sub=value``, value parsed as YAML) and validate a config."""
-    path = resolve_path(name)
+def _read_yaml(path: Path) -> dict[str, Any]:
+    if not path.exists():
+        raise ConfigError(f"{path} is missing")
+    if not path.is_file():
+        raise ConfigError(f"{path} is a directory, not a YAML file" if path.is_dir() else f"{path} is not a file")
     try:
         data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as err:
-        raise ConfigError(f"{path}: not valid YAML: {err}") from err
+    except yaml.MarkedYAMLError as err:
+        mark = err.problem_mark
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        raise ConfigError(f"{path}: not valid YAML ({where}{err.problem or err.context})") from err
+    except (yaml.YAMLError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: not valid YAML ({err})") from err
+    except OSError as err:
+        raise ConfigError(f"{path} cannot be read: {err.strerror}") from err
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: the top level must be a mapping of keys")
-    for item in overrides or []:
-        key, sep, raw = item.partition("=")
-        if not sep or not key:
-            raise ConfigError(f"--set {item!r}: expected key=value")
-        _set_dotted(data, key.strip(), yaml.safe_load(raw))
+    return data
+
+
+def _validate(data: dict[str, Any], source: Path, overrides: list[str] | None = None) -> RunConfig:
     try:
         return RunConfig.model_validate(data)
     except ValidationError as err:
@@ -211,12 +221,48 @@ def load_config(name: str, overrides: list[str] | None = None) -> RunConfig:
         for e in err.errors():
             key = ".".join(str(p) for p in e["loc"])
             # A key given with --set is reported as coming from --set, not from the file.
-            source = next((f"--set {item}" for item, k in zip(overrides or [], overridden)
-                           if key == k or key.startswith(k + ".")), str(path))
-            problems.append(f"{source}: {key or '(top level)'}: {e['msg']}")
+            origin = next(
+                (f"--set {item}" for item, k in zip(overrides or [], overridden) if key == k or key.startswith(k + ".")),
+                str(source),
+            )
+            problems.append(f"{origin}: {key or '(top level)'}: {e['msg']}")
         raise ConfigError("; ".join(problems)) from err
+
+
+def load_config(name: str, overrides: list[str] | None = None) -> RunConfig:
+    """Read, override (``key.sub=value``, value parsed as YAML) and validate a config."""
+    path = resolve_path(name)
+    data = _read_yaml(path)
+    for item in overrides or []:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--set {item!r}: expected key=value")
+        try:
+            value = yaml.safe_load(raw)
+        except yaml.YAMLError as err:
+            raise ConfigError(f"--set {item!r}: the value is not valid YAML ({getattr(err, 'problem', None) or err})") from err
+        _set_dotted(data, key.strip(), value)
+    return _validate(data, path, overrides)
 
 
 def saved_run_config(run_dir: Path) -> RunConfig:
     """The config a run wrote into its directory when it started."""
-    return RunConfig.model_validate(yaml.safe_load((Path(run_dir) / RUN_CONFIG_FILE).read_text()))
+    return _validate(_read_yaml(Path(run_dir) / RUN_CONFIG_FILE), Path(run_dir) / RUN_CONFIG_FILE)
+
+
+def config_hash(run: RunConfig) -> str:
+    """A digest of the validated config: what a resume compares to detect an edited ``config.yaml``."""
+    canonical = json.dumps(run.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def changed_keys(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> list[str]:
+    """Dotted keys whose values differ between two dumped configs."""
+    changed = []
+    for key in sorted(set(old) | set(new), key=str):
+        a, b = old.get(key), new.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            changed += changed_keys(a, b, f"{prefix}{key}.")
+        elif a != b:
+            changed.append(f"{prefix}{key}")
+    return changed

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import shutil
 import time
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
@@ -32,6 +33,8 @@ from league.payoff import aggregate, league_ratings, win_rate
 from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
 from league.progress import IterationTiming, ProgressReporter
+from league.run_dir import write_manifest
+from league.stop import StopRequests
 from league.store import LeagueStore
 
 ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
@@ -150,11 +153,12 @@ class Coordinator:
         return plan, weights
 
     # ------------------------------------------------------------ iteration
-    def train_iteration(self, progress: ProgressReporter) -> None:
+    def train_iteration(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
         plan, weights = self.match_plan()
         bridge.set_match_plan(self.algo, plan)
         started = time.perf_counter()
-        result = self.algo.train()
+        with stop.interruptible() if stop else nullcontext():
+            result = self.algo.train()
         seconds = time.perf_counter() - started
         learning = bridge.take_learning_seconds(self.algo)
         self.report_runner_health()
@@ -304,13 +308,19 @@ class Coordinator:
         }
 
     def checkpoint(self) -> Path:
-        """Write the algorithm to a temporary directory, then rename it into place."""
+        """Write the algorithm and its manifest to a temporary directory, then rename it into
+        place; a failure (a full disk, a stop signal) removes the temporary directory."""
         final = self.run_dir / "checkpoints" / f"iter_{self.state.iteration:06d}"
         partial = final.with_name(final.name + ".partial")
         for stale in (partial, final):
             if stale.exists():
                 shutil.rmtree(stale)
-        self.algo.save_to_path(str(partial))
+        try:
+            self.algo.save_to_path(str(partial))
+            write_manifest(partial)
+        except BaseException:
+            shutil.rmtree(partial, ignore_errors=True)
+            raise
         partial.rename(final)
         return final
 
@@ -321,8 +331,11 @@ class Coordinator:
                 shutil.rmtree(directory, ignore_errors=True)
 
     # ------------------------------------------------------------ whole run
-    def train(self, progress: ProgressReporter) -> None:
+    def train(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
+        """Train to the end; ``stop`` (SIGINT, SIGTERM) ends it between iterations or during sampling and learning."""
         self.log = progress.message
         self.set_trainable(self.state.phase.side)
         while not self.state.training_done:
-            self.train_iteration(progress)
+            if stop:
+                stop.check()
+            self.train_iteration(progress, stop)

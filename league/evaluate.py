@@ -16,11 +16,10 @@ from pathlib import Path
 
 import torch
 
-from league.config import saved_run_config
 from league.evaluation import PairResult, evaluate_pairs, format_table, wilson_interval
 from league.payoff import league_ratings
 from league.players import Player
-from league.store import DB_NAME, LeagueStore
+from league.run_dir import RunDirError, open_run
 
 
 def latest_by_method(players: list[Player]) -> dict[int, Player]:
@@ -66,25 +65,38 @@ def choose(players: list[Player], names: list[str] | None) -> list[Player]:
     return [by_name[n] for n in names]
 
 
+def count(minimum: int):
+    """An argparse type: an integer of at least ``minimum``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+        return value
+
+    return parse
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m league.evaluate", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
-    parser.add_argument("--episodes", type=int, help="fixed games per pair (default: the run's evaluation.episodes)")
+    parser.add_argument("--episodes", type=count(1), help="fixed games per pair (default: the run's evaluation.episodes)")
     parser.add_argument("--players", nargs="+", help="player names (default: every snapshot and scripted player)")
-    parser.add_argument("--workers", type=int, help="evaluation actors (default: the run's evaluation.workers)")
+    parser.add_argument(
+        "--workers", type=count(0), help="evaluation actors, 0: in this process (default: the run's evaluation.workers)"
+    )
     args = parser.parse_args(argv)
-    if not (args.run_dir / DB_NAME).exists():
-        print(f"error: no league database at {args.run_dir / DB_NAME}", file=sys.stderr)
-        return 2
-    run = saved_run_config(args.run_dir)
-    torch.set_num_threads(run.resources.threads_for(1))  # games played here run torch in this process
-    store = LeagueStore(args.run_dir)
     try:
+        run, store = open_run(args.run_dir)
         players = choose(store.players(), args.players)
-    except ValueError as err:
+    except (RunDirError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    episodes = args.episodes or run.evaluation.episodes
+    torch.set_num_threads(run.resources.threads_for(1))  # games played here run torch in this process
+    episodes = run.evaluation.episodes if args.episodes is None else args.episodes
     workers = run.evaluation.workers if args.workers is None else args.workers
     pairs = [(a, t) for a in players if a.side == "attacker" for t in players if t.side == "team"]
     if not pairs:
@@ -95,7 +107,10 @@ def main(argv: list[str] | None = None) -> int:
         import ray
 
         if not ray.is_initialized():
-            ray.init(num_cpus=max(1, int(workers * run.evaluation.cpus_per_worker + 0.999)), include_dashboard=False)
+            ray.init(  # a private instance, like league.run's
+                address="local", num_cpus=max(1, int(workers * run.evaluation.cpus_per_worker + 0.999)),
+                include_dashboard=False,
+            )
             started_ray = True
     try:
         ev = run.evaluation

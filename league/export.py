@@ -32,7 +32,8 @@ from torch import nn
 
 from envs.single import action_space, observation_space
 from league.players import Player
-from league.store import DB_NAME, LeagueStore
+from league.run_dir import RunDirError, open_run
+from league.store import LeagueStore
 
 METADATA_FILE = "metadata.json"
 FORMATS = ("export", "torchscript", "onnx")
@@ -115,13 +116,10 @@ def metadata(run: Any, player: Player, module: Any) -> dict[str, Any]:
 
 
 def build(run_dir: Path, spec: str) -> tuple[ExportedPolicy, dict[str, Any]]:
-
-    from league.config import saved_run_config
-
-    if not (run_dir / DB_NAME).exists():
-        raise ExportError(f"no league database at {run_dir / DB_NAME}")
-    run = saved_run_config(run_dir)
-    store = LeagueStore(run_dir)
+    try:
+        run, store = open_run(run_dir)
+    except RunDirError as err:
+        raise ExportError(str(err)) from err
     try:
         player = resolve_player(store, spec)
     finally:
@@ -135,6 +133,14 @@ def export(policy: ExportedPolicy, info: dict[str, Any], fmt: str, out: Path) ->
     example = torch.zeros(1, info["observation"]["size"])
     out.parent.mkdir(parents=True, exist_ok=True)
     partial = out.with_suffix(".partial" + out.suffix)  # keeps the suffix torch.export.save expects
+    try:
+        _write(policy, info, fmt, example, partial)
+        partial.replace(out)  # never leave a half-written file under the requested name
+    finally:
+        partial.unlink(missing_ok=True)
+
+
+def _write(policy: ExportedPolicy, info: dict[str, Any], fmt: str, example: torch.Tensor, partial: Path) -> None:
     if fmt == "export":
         # A batch of 2 to trace: torch.export specialises a dimension of size 1 to a constant.
         program = torch.export.export(policy, (example.expand(2, -1),),
@@ -156,7 +162,6 @@ def export(policy: ExportedPolicy, info: dict[str, Any], fmt: str, out: Path) ->
         model = onnx.load(str(partial))
         onnx.helper.set_model_props(model, {METADATA_FILE: json.dumps(info)})
         onnx.save(model, str(partial))
-    partial.replace(out)  # never leave a half-written file under the requested name
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -166,6 +171,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--format", choices=FORMATS, default="torchscript")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args(argv)
+    if args.out.is_dir():
+        print(f"error: --out {args.out} is a directory; give a file name, e.g. {args.out / 'policy.pt'}", file=sys.stderr)
+        return 2
     try:
         policy, info = build(args.run_dir, args.player)
         export(policy, info, args.format, args.out)

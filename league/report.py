@@ -37,7 +37,8 @@ from league.config import RunConfig, saved_run_config
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
 from league.payoff import ATTACKER_WINS, aggregate, league_ratings
 from league.players import Player
-from league.store import DB_NAME, LeagueStore
+from league.run_dir import RunDirError, open_run
+from league.store import LeagueStore
 
 # The paper's Table 1: A's winning percentage over 100 test rounds per method.
 PAPER_TABLE_1 = {1: 0.48, 2: 0.6253, 3: 0.5763}
@@ -389,8 +390,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m league.report", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
     args = parser.parse_args(argv)
-    if not (args.run_dir / DB_NAME).exists():
-        print(f"error: no league database at {args.run_dir / DB_NAME}", file=sys.stderr)
+    try:
+        open_run(args.run_dir)[1].close()  # checks config.yaml and league.db, one line if damaged
+    except RunDirError as err:
+        print(f"error: {err}", file=sys.stderr)
         return 2
     report = build_report(args.run_dir.resolve())
     print(f"report written to {report} and {report.with_name('index.html')}")

@@ -1,17 +1,35 @@
 """Train a league: ``python -m league.run --config attacker_method2.yaml``.
 
-``--resume RUN_DIR`` continues a run from its last complete checkpoint; ``--address``
-joins an existing Ray cluster; ``--set key.sub=value`` overrides config keys.
-Exit code 2 for a bad config or run directory, before anything is written.
+``--resume RUN_DIR`` continues a run from its newest intact checkpoint; ``--address``
+joins an existing Ray cluster (without it the run starts a private Ray instance, even
+when another cluster runs on the machine); ``--set key.sub=value`` overrides config keys.
+
+Exit codes: 0 done; 2 a bad config, argument or run directory (one line on stderr,
+nothing written), a run directory another process is training, or a full disk;
+130 / 143 stopped by SIGINT (Ctrl-C) / SIGTERM, with one line saying where the run
+stopped and how to resume it. A new run that fails before its first checkpoint removes
+what it wrote.
 """
 
 from __future__ import annotations
+
+import signal
+import sys
+
+
+def _stopped_while_importing(signum: int, frame: object) -> None:
+    print("stopped while starting; nothing was written", file=sys.stderr)
+    raise SystemExit(128 + signum)
+
+
+if __name__ == "__main__":  # the imports below take seconds (torch, Ray); main() installs the real handlers
+    for _signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(_signum, _stopped_while_importing)
 
 import argparse
 import json
 import logging
 import shutil
-import sys
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -20,19 +38,28 @@ import numpy as np
 
 import yaml
 
-from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, load_config, saved_run_config
+from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, load_config
 from league.coordinator import Coordinator, PhaseState, RunState, phase_count, phase_side
 from league.evaluate import method_table
 from league.evaluation import evaluate_pairs, format_table
 from league.payoff import league_ratings
 from league.progress import ProgressReporter
+from league.run_dir import (
+    LOCK_FILE,
+    RunDirError,
+    check_config_unchanged,
+    check_run_dir,
+    disk_full_message,
+    is_disk_full,
+    lock_run,
+    open_run,
+    record_config,
+    usable_checkpoints,
+)
+from league.stop import StopRequests, Stopped
 from league.store import DB_NAME, LeagueStore
 
 EVALUATION_FILE = "evaluation.md"
-
-
-class RunDirError(ValueError):
-    pass
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -45,14 +72,16 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if bool(args.config) == bool(args.resume):
         parser.error("give exactly one of --config and --resume")
-    if args.resume and args.overrides:
-        parser.error("--set applies to new runs only; a resumed run keeps its config")
+    if args.resume and (args.overrides or args.run_dir):
+        parser.error("--set and --run-dir apply to new runs only; a resumed run keeps its config and directory")
     return args
 
 
 def prepare_new_run_dir(run: RunConfig, run_dir: Path | None) -> Path:
     run_dir = run_dir or Path("runs") / f"{run.name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    if run_dir.exists() and any(run_dir.iterdir()):
+    if run_dir.exists() and not run_dir.is_dir():
+        raise RunDirError(f"--run-dir {run_dir} is a file, not a directory")
+    if run_dir.exists() and any(p.name != LOCK_FILE for p in run_dir.iterdir()):
         hint = " (use --resume to continue it)" if (run_dir / DB_NAME).exists() else ""
         raise RunDirError(f"run directory {run_dir} exists and is not empty{hint}")
     return run_dir
@@ -61,72 +90,101 @@ def prepare_new_run_dir(run: RunConfig, run_dir: Path | None) -> Path:
 def start_ray(run: RunConfig, address: str | None) -> None:
     import ray
 
-    if address:
-        ray.init(address=address, logging_level=logging.ERROR, log_to_driver=False)
-    else:
-        ray.init(num_cpus=run.resources.num_cpus, include_dashboard=False, logging_level=logging.ERROR, log_to_driver=False)
+    # "local": a private instance, even when RAY_ADDRESS is set or a `ray start` cluster runs here.
+    where = {"address": address} if address else {
+        "address": "local", "num_cpus": run.resources.num_cpus, "include_dashboard": False
+    }
+    try:
+        ray.init(logging_level=logging.ERROR, log_to_driver=False, **where)
+    except SystemExit as exit_:
+        if exit_.code == signal.SIGTERM:  # ray.init's own SIGTERM handler ends in sys.exit(15)
+            raise Stopped(signal.SIGTERM) from None
+        raise
 
 
-def new_run(run: RunConfig, run_dir: Path) -> Coordinator:
+def new_run(run: RunConfig, run_dir: Path, stop: StopRequests) -> Coordinator:
+    """Create the run and commit its first checkpoint; on any failure or stop, remove what was written."""
     from league import rllib_bridge as bridge
 
-    run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / RUN_CONFIG_FILE).write_text(yaml.safe_dump(run.model_dump(mode="json"), sort_keys=False))
-    store = LeagueStore(run_dir, create=True)
-    with store.transaction():
-        for method in run.attacker_methods:
-            store.add_player(0, side="attacker", kind="learner", version=0, reward_method=method)
-        store.add_player(0, side="team", kind="learner", version=0)
-        for name in run.league.scripted_attackers:
-            store.add_player(0, side="attacker", kind="scripted", version=0, scripted_attacker=name)
-        for team in run.league.scripted_teams:
-            store.add_player(
-                0, side="team", kind="scripted", version=0, scripted_targeter=team.targeter, scripted_defender=team.defender
-            )
-    state = RunState(phase=PhaseState(index=0, side=phase_side(run, 0), start_iteration=0))
-    first_attacker = store.players(side="attacker", kind="learner")[0]
-    first_team = store.players(side="team", kind="scripted")[0]
-    plan = bridge.MatchPlan([first_attacker.modules()], [[first_team.modules()]], [[1.0]], run.seed)
-    algo = bridge.build_config(run, store.players(), plan).build_algo()
-    coordinator = Coordinator(run, run_dir, store, algo, state)
-    coordinator.rng = np.random.default_rng(run.seed)
-    # The untrained policies join the league as version 0: the baseline every later
-    # snapshot is measured against.
-    initial = [coordinator.snapshot(learner) for learner in store.players(kind="learner")]
-    checkpoint = coordinator.checkpoint()
-    with store.transaction():
-        for columns in initial:
-            store.add_player(0, **columns)
-        state.rng = coordinator.rng.bit_generator.state
-        store.record_checkpoint(0, str(checkpoint.relative_to(run_dir)), json.dumps(asdict(state)))
-    return coordinator
+    store = None
+    try:
+        (run_dir / RUN_CONFIG_FILE).write_text(yaml.safe_dump(run.model_dump(mode="json"), sort_keys=False))
+        store = LeagueStore(run_dir, create=True)
+        with store.transaction():
+            record_config(store, run)
+            for method in run.attacker_methods:
+                store.add_player(0, side="attacker", kind="learner", version=0, reward_method=method)
+            store.add_player(0, side="team", kind="learner", version=0)
+            for name in run.league.scripted_attackers:
+                store.add_player(0, side="attacker", kind="scripted", version=0, scripted_attacker=name)
+            for team in run.league.scripted_teams:
+                store.add_player(
+                    0, side="team", kind="scripted", version=0, scripted_targeter=team.targeter, scripted_defender=team.defender
+                )
+        state = RunState(phase=PhaseState(index=0, side=phase_side(run, 0), start_iteration=0))
+        first_attacker = store.players(side="attacker", kind="learner")[0]
+        first_team = store.players(side="team", kind="scripted")[0]
+        plan = bridge.MatchPlan([first_attacker.modules()], [[first_team.modules()]], [[1.0]], run.seed)
+        algo = bridge.build_config(run, store.players(), plan).build_algo()
+        stop.check()
+        coordinator = Coordinator(run, run_dir, store, algo, state)
+        coordinator.rng = np.random.default_rng(run.seed)
+        # The untrained policies join the league as version 0: the baseline every later
+        # snapshot is measured against.
+        initial = [coordinator.snapshot(learner) for learner in store.players(kind="learner")]
+        checkpoint = coordinator.checkpoint()
+        stop.check()
+        with store.transaction():
+            for columns in initial:
+                store.add_player(0, **columns)
+            state.rng = coordinator.rng.bit_generator.state
+            store.record_checkpoint(0, str(checkpoint.relative_to(run_dir)), json.dumps(asdict(state)))
+        return coordinator
+    except BaseException:
+        if store is not None:
+            store.close()
+        for path in run_dir.iterdir():  # the lock file stays until the lock is released
+            if path.name != LOCK_FILE:
+                shutil.rmtree(path) if path.is_dir() else path.unlink()
+        raise
 
 
-def read_run_config(run_dir: Path) -> RunConfig:
-    if not (run_dir / DB_NAME).exists() or not (run_dir / RUN_CONFIG_FILE).exists():
-        raise RunDirError(f"{run_dir} is not a league run directory (no {DB_NAME} or {RUN_CONFIG_FILE})")
-    return saved_run_config(run_dir)
+def intact_checkpoints(run_dir: Path, store: LeagueStore) -> tuple[list[tuple[int, str]], list[str]]:
+    """``usable_checkpoints``, or a ``RunDirError`` when there is none to resume from."""
+    usable, problems = usable_checkpoints(run_dir, store)
+    if usable:
+        return usable, problems
+    if not problems:
+        raise RunDirError(
+            f"{run_dir} has no checkpoint: its first start was killed before it made one; "
+            f"delete it (rm -r {run_dir}) and start the run again"
+        )
+    raise RunDirError(f"{run_dir} has no intact checkpoint to resume from ({'; '.join(problems)}): start a new run")
 
 
-def resume_run(run_dir: Path) -> Coordinator:
+def resume_run(run_dir: Path, run: RunConfig, store: LeagueStore, say) -> Coordinator:
+    """Restore the newest intact checkpoint; roll the database back to it."""
     from ray.rllib.algorithms.algorithm import Algorithm
 
-    run = read_run_config(run_dir)
-    store = LeagueStore(run_dir)
-    last = store.last_checkpoint()
-    if last is None or not (run_dir / last[1]).exists():
-        raise RunDirError(f"{run_dir} has no complete checkpoint to resume from")
-    iteration, path, state_json = last
+    usable, problems = intact_checkpoints(run_dir, store)
+    iteration, path = usable[0]
+    last_committed = (store.last_iteration() or {}).get("iteration", 0)
     store.rollback_after(iteration)
     kept = {run_dir / p for _, p in store.checkpoints()}
     for directory in (run_dir / "checkpoints").glob("iter_*"):
-        if directory not in kept:  # partial, or written after the last commit
+        if directory not in kept:  # partial, damaged, or written after the last commit
             shutil.rmtree(directory, ignore_errors=True)
+    if problems:
+        say(
+            f"resuming from the checkpoint of iteration {iteration}, the newest intact one: {'; '.join(problems)}; "
+            f"the league database was rolled back from iteration {last_committed} to {iteration}"
+        )
+    _, _, state_json = store.last_checkpoint()
     algo = Algorithm.from_checkpoint(str(run_dir / path))
     return Coordinator(run, run_dir, store, algo, RunState.from_json(state_json))
 
 
-def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Path:
+def evaluate_league(coordinator: Coordinator, progress: ProgressReporter, stop: StopRequests) -> Path:
     """Every frozen attacker against every frozen team on the fixed evaluation games."""
     store, run = coordinator.store, coordinator.run
     frozen = [p for p in store.players() if p.kind != "learner"]
@@ -134,10 +192,11 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
     teams = [p for p in frozen if p.side == "team"]
     pairs = [(attacker, team) for attacker in attackers for team in teams]
     ev = run.evaluation
-    results = evaluate_pairs(
-        run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker, coordinator.evaluation_pool,
-        ev.custom_resources_per_worker, run.resources.torch_threads,
-    )
+    with stop.interruptible():  # playing the games writes nothing
+        results = evaluate_pairs(
+            run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker,
+            coordinator.evaluation_pool, ev.custom_resources_per_worker, run.resources.torch_threads,
+        )
     iteration = coordinator.state.iteration
     with store.transaction():
         for r in results:
@@ -145,57 +204,122 @@ def evaluate_league(coordinator: Coordinator, progress: ProgressReporter) -> Pat
         store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
         store.set_meta("evaluated_iteration", iteration)
     out = coordinator.run_dir / EVALUATION_FILE
-    out.write_text(
+    partial = out.with_name(out.name + ".partial")
+    partial.write_text(
         f"# Evaluation of {run.name} after iteration {iteration}\n\n"
         f"{run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair; "
         "attacker win rate with its 95% Wilson interval.\n\n" + format_table(results)
         + "\n## Per attacker reward method\n\n" + method_table(results)
     )
+    partial.replace(out)
     progress.evaluation(results, iteration)
     progress.message(f"evaluation of {len(results)} pairs written to {out}")
     return out
 
 
+def open_for_training(args: argparse.Namespace) -> tuple[RunConfig, Path, LeagueStore | None, object, bool]:
+    """Validate everything and take the run directory's lock, before anything is written.
+
+    Returns the config, the resolved run directory, the opened store (a resume), the
+    held lock and whether this process created the directory."""
+    if args.resume:
+        run_dir = args.resume.resolve()
+        check_run_dir(run_dir)
+        lock = lock_run(run_dir)  # before reading: another process may be rolling the database back
+        try:
+            run, store = open_run(run_dir)
+            check_config_unchanged(run_dir, run, store)
+            intact_checkpoints(run_dir, store)  # before Ray starts: fail fast
+        except BaseException:
+            lock.release()
+            raise
+        return run, run_dir, store, lock, False
+    run = load_config(args.config, args.overrides)
+    run_dir = prepare_new_run_dir(run, args.run_dir).resolve()
+    created = not run_dir.exists()
+    run_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        lock = lock_run(run_dir)
+        prepare_new_run_dir(run, run_dir)  # again, under the lock: another run may have started here
+    except BaseException:
+        if created:
+            shutil.rmtree(run_dir, ignore_errors=True)
+        raise
+    return run, run_dir, None, lock, created
+
+
+def stopped_message(run_dir: Path, store: LeagueStore | None) -> str:
+    if store is None:  # a new run stopped before its first checkpoint: nothing was kept
+        return f"stopped before the first checkpoint; nothing was kept in {run_dir}"
+    last = store.last_iteration()
+    checkpoint = store.last_checkpoint()
+    return (
+        f"stopped at iteration {last['iteration'] if last else 0}, last checkpoint {checkpoint[0] if checkpoint else 'none'}, "
+        f"resume with `python -m league.run --resume {run_dir}`"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     try:
-        if args.resume:
-            run_dir = args.resume.resolve()
-            run = read_run_config(run_dir)
-        else:
-            run = load_config(args.config, args.overrides)
-            run_dir = prepare_new_run_dir(run, args.run_dir).resolve()
+        run, run_dir, store, lock, created = open_for_training(args)
     except (ConfigError, RunDirError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    stop = StopRequests()
+    stop.install()
 
     import ray
     import torch
 
     torch.set_num_threads(run.resources.threads_for(1))  # the driver: learner, local env runner, evaluation
-    start_ray(run, args.address)
     progress = None
     try:
-        try:
-            coordinator = resume_run(run_dir) if args.resume else new_run(run, run_dir)
-        except RunDirError as err:
-            print(f"error: {err}", file=sys.stderr)
-            return 2
-        progress = ProgressReporter(run_dir, phase_count(run))
-        progress.message(f"run directory {run_dir} ({'resumed at iteration ' + str(coordinator.state.iteration) if args.resume else 'new'})")
+        with stop.held_by_main_thread():
+            start_ray(run, args.address)
+            stop.install()
+        stop.check()
+        if args.resume:
+            progress = ProgressReporter(run_dir, phase_count(run))
+            coordinator = resume_run(run_dir, run, store, progress.message)
+        else:
+            coordinator = new_run(run, run_dir, stop)
+            store = coordinator.store
+            progress = ProgressReporter(run_dir, phase_count(run))
+        progress.message(
+            f"run directory {run_dir} ({'resumed at iteration ' + str(coordinator.state.iteration) if args.resume else 'new'})"
+        )
         started = time.perf_counter()
-        coordinator.train(progress)
+        coordinator.train(progress, stop)
         if coordinator.store.get_meta("evaluated_iteration") != coordinator.state.iteration:
-            evaluate_league(coordinator, progress)
+            evaluate_league(coordinator, progress, stop)
         if coordinator.evaluation_pool is not None:
             coordinator.evaluation_pool.close()
         progress.message(f"done in {time.perf_counter() - started:.0f} s: {run_dir}")
         coordinator.algo.stop()
         return 0
+    except RunDirError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except Stopped as stopped:
+        stop.ignore()  # a second Ctrl-C must not break the shutdown below
+        print(stopped_message(run_dir, store), file=sys.stderr)
+        return stopped.exit_code
+    except Exception as err:
+        if not is_disk_full(err):
+            raise
+        stop.ignore()
+        print(f"error: {disk_full_message(run_dir, store)}", file=sys.stderr)
+        return 2
     finally:
+        stop.ignore()
         if progress is not None:
             progress.close()
         ray.shutdown()
+        lock.release()
+        if created and store is None:  # a new run that failed before its first checkpoint
+            shutil.rmtree(run_dir, ignore_errors=True)
+        stop.restore()
 
 
 if __name__ == "__main__":

@@ -14,7 +14,8 @@ from rich.table import Table
 
 from envs.agents import Outcome
 from league.payoff import aggregate
-from league.store import DB_NAME, LeagueStore
+from league.run_dir import RunDirError, open_run, usable_checkpoints
+from league.store import LeagueStore
 
 ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 
@@ -70,15 +71,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run-dir", type=Path, required=True)
     parser.add_argument("--source", choices=["training", "evaluation"], help="count only these matches")
     args = parser.parse_args(argv)
-    if not (args.run_dir / DB_NAME).exists():
-        print(f"error: no league database at {args.run_dir / DB_NAME}", file=sys.stderr)
+    try:
+        _, store = open_run(args.run_dir)
+    except RunDirError as err:
+        print(f"error: {err}", file=sys.stderr)
         return 2
-    store = LeagueStore(args.run_dir)
     console = Console() if sys.stdout.isatty() else Console(width=160)
     console.print(run_line(store))
-    checkpoint = store.last_checkpoint()
-    if checkpoint:
-        console.print(f"last checkpoint: iteration {checkpoint[0]} at {checkpoint[1]}")
+    usable, problems = usable_checkpoints(args.run_dir, store)
+    if usable:
+        console.print(f"last checkpoint: iteration {usable[0][0]} at {usable[0][1]}")
+    for problem in problems:
+        console.print(f"warning: {problem}; a resume falls back to the newest intact checkpoint")
     console.print(league_table(store, args.source))
     store.close()
     return 0

@@ -6,11 +6,17 @@ record; a kill mid-iteration therefore leaves the database at the previous itera
 On resume, rows of iterations after the last checkpoint are deleted
 (``rollback_after``), so nothing is counted twice. WAL mode lets ``league.status``
 read while training writes.
+
+The schema is written under a temporary name and renamed into place, so a reader never
+sees a ``league.db`` without its tables. Opening an existing database checks it
+(``PRAGMA quick_check`` and the tables) and raises ``DamagedStoreError`` naming the
+file and the problem.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 from contextlib import contextmanager
 from pathlib import Path
@@ -68,26 +74,64 @@ CREATE TABLE IF NOT EXISTS checkpoints (
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 """
 
+TABLES = ("players", "matches", "ratings", "iterations", "checkpoints", "meta")
+
 PLAYER_COLUMNS = (
     "id, side, kind, version, reward_method, parent, scripted_attacker, scripted_targeter, "
     "scripted_defender, env_steps, checkpoint, created_iteration"
 )
 
 
+class DamagedStoreError(ValueError):
+    """A ``league.db`` that cannot be read as a league database; the message names the file."""
+
+
+def create_database(path: Path) -> None:
+    """Write an empty league database with its schema at ``path``, in one rename."""
+    partial = path.with_name(path.name + ".partial")
+    for stale in (partial, partial.with_name(partial.name + "-wal"), partial.with_name(partial.name + "-shm")):
+        stale.unlink(missing_ok=True)
+    db = sqlite3.connect(partial, isolation_level=None)
+    try:
+        db.execute("PRAGMA journal_mode=WAL")  # kept in the file: every later connection is in WAL mode
+        db.executescript(f"BEGIN; {SCHEMA} COMMIT;")
+    finally:
+        db.close()  # the last connection folds the WAL into the file and removes it
+    os.replace(partial, path)
+
+
 class LeagueStore:
     def __init__(self, run_dir: Path, create: bool = False):
         path = Path(run_dir) / DB_NAME
-        if not create and not path.exists():
+        if create:
+            create_database(path)
+        elif not path.exists():
             raise FileNotFoundError(f"no league database at {path}")
         self.path = path
         self.db = sqlite3.connect(path, isolation_level=None, timeout=30.0)
-        self.db.execute("PRAGMA journal_mode=WAL")
-        self.db.execute("PRAGMA foreign_keys=ON")
-        if create:
-            self.db.executescript(SCHEMA)
-        columns = {row[1] for row in self.db.execute("PRAGMA table_info(iterations)")}
-        if columns and "returns" not in columns:  # a database from before returns were recorded
-            self.db.execute("ALTER TABLE iterations ADD COLUMN returns TEXT NOT NULL DEFAULT '{}'")
+        try:
+            self.check()
+            self.db.execute("PRAGMA foreign_keys=ON")
+            columns = {row[1] for row in self.db.execute("PRAGMA table_info(iterations)")}
+            if "returns" not in columns:  # a database from before returns were recorded
+                self.db.execute("ALTER TABLE iterations ADD COLUMN returns TEXT NOT NULL DEFAULT '{}'")
+        except sqlite3.DatabaseError as err:
+            self.db.close()
+            raise DamagedStoreError(f"{path} is damaged ({err})") from err
+        except DamagedStoreError:
+            self.db.close()
+            raise
+
+    def check(self) -> None:
+        """Raise ``DamagedStoreError`` unless the file is an intact SQLite database with the league's tables."""
+        (verdict,) = self.db.execute("PRAGMA quick_check(1)").fetchone()
+        if verdict != "ok":
+            raise DamagedStoreError(f"{self.path} is damaged (integrity check: {' '.join(verdict.split())})")
+        tables = {name for (name,) in self.db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        missing = [t for t in TABLES if t not in tables]
+        if missing:
+            what = "empty" if not tables else "not a league database"
+            raise DamagedStoreError(f"{self.path} is {what} (no table {', '.join(missing)})")
 
     def close(self) -> None:
         self.db.close()
@@ -250,3 +294,5 @@ class LeagueStore:
             self.db.execute("DELETE FROM iterations WHERE iteration > ?", (iteration,))
             self.db.execute("DELETE FROM checkpoints WHERE iteration > ?", (iteration,))
             self.db.execute("DELETE FROM players WHERE created_iteration > ?", (iteration,))
+            if (self.get_meta("evaluated_iteration") or 0) > iteration:  # its evaluation rows are gone
+                self.db.execute("DELETE FROM meta WHERE key = 'evaluated_iteration'")

@@ -37,9 +37,12 @@ NODE = {"num_cpus": 2, "resources": {"sampler": 1, "evaluator": 1}}
 
 # ---------------------------------------------------------------- in the child process
 def iterations(run_dir):
+    """Committed iterations; none while the run has not created its league database yet."""
     if not (run_dir / "league.db").exists():
         return []
-    with sqlite3.connect(run_dir / "league.db") as db:
+    with sqlite3.connect(run_dir / "league.db", timeout=30) as db:
+        if not db.execute("SELECT 1 FROM sqlite_master WHERE name = 'iterations'").fetchone():
+            return []  # no schema yet, so nothing committed
         return [i for (i,) in db.execute("SELECT iteration FROM iterations ORDER BY iteration")]
 
 

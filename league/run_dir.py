@@ -1,0 +1,191 @@
+"""A run directory: opened for reading, locked for training, checked for damage.
+
+Every CLI opens a run through ``open_run``: the directory, ``config.yaml`` and
+``league.db`` are checked before anything else happens, and any problem becomes one
+``RunDirError`` whose message names the file, what is wrong and what the user can do.
+
+A checkpoint directory carries a manifest (size and SHA-256 of every file, written
+before the directory is renamed into place), so a resume can tell a complete checkpoint
+from a deleted, truncated or garbled one without loading it, and fall back to the
+newest intact one.
+
+Only one process trains a run at a time: ``lock_run`` takes an exclusive ``flock`` on
+``RUN_DIR/run.lock`` (the ``filelock`` library) and writes the holder's pid into it. The
+kernel drops the lock when the holder exits, however it exits, so a killed run never
+leaves a stale lock. Readers (``status``, ``evaluate``, ``report``, ``export``) take no
+lock: SQLite's WAL mode lets them read while training writes.
+"""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import json
+import os
+import shutil
+from pathlib import Path
+
+from filelock import FileLock, Timeout
+
+from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, changed_keys, config_hash, saved_run_config
+from league.store import DB_NAME, DamagedStoreError, LeagueStore
+
+LOCK_FILE = "run.lock"
+MANIFEST_FILE = "league_manifest.json"
+CONFIG_META = "config"  # the validated config as created, in the store's meta table
+CONFIG_HASH_META = "config_hash"
+
+
+class RunDirError(ValueError):
+    """A run directory that cannot be used as asked; the message is one line for the user."""
+
+
+def check_run_dir(run_dir: Path) -> None:
+    if not run_dir.exists():
+        raise RunDirError(f"no run directory at {run_dir}")
+    if not run_dir.is_dir():
+        raise RunDirError(f"{run_dir} is a file, not a run directory")
+    if not (run_dir / DB_NAME).exists():
+        raise RunDirError(f"{run_dir} is not a league run directory (no {DB_NAME})")
+
+
+def open_store(run_dir: Path) -> LeagueStore:
+    """The run's league database, checked; a damaged one is a ``RunDirError``."""
+    check_run_dir(run_dir)
+    try:
+        return LeagueStore(run_dir)
+    except DamagedStoreError as err:
+        raise RunDirError(f"{err}: restore it from a backup, or start a new run") from err
+
+
+def read_config(run_dir: Path) -> RunConfig:
+    check_run_dir(run_dir)
+    try:
+        return saved_run_config(run_dir)
+    except ConfigError as err:
+        raise RunDirError(f"{err}; restore the config the run was started with") from err
+
+
+def open_run(run_dir: Path) -> tuple[RunConfig, LeagueStore]:
+    """The run's config and league database, both checked."""
+    run = read_config(run_dir)
+    return run, open_store(run_dir)
+
+
+def record_config(store: LeagueStore, run: RunConfig) -> None:
+    """Remember the config a run was created with (call inside a transaction)."""
+    store.set_meta(CONFIG_META, run.model_dump(mode="json"))
+    store.set_meta(CONFIG_HASH_META, config_hash(run))
+
+
+def check_config_unchanged(run_dir: Path, run: RunConfig, store: LeagueStore) -> None:
+    """Refuse a resume whose ``config.yaml`` differs from the one the run was created with."""
+    recorded = store.get_meta(CONFIG_HASH_META)
+    if recorded is None or recorded == config_hash(run):  # runs made before the hash was kept are not checked
+        return
+    keys = changed_keys(store.get_meta(CONFIG_META) or {}, run.model_dump(mode="json"))
+    raise RunDirError(
+        f"{run_dir / RUN_CONFIG_FILE} was changed after the run started ({', '.join(keys) or 'formatting of values'}): "
+        "undo the change to resume, or start a new run with the new config"
+    )
+
+
+def lock_holder(run_dir: Path) -> int | None:
+    """The pid written by the process holding (or last holding) the run's lock."""
+    try:
+        return int((run_dir / LOCK_FILE).read_text().strip())
+    except (OSError, ValueError):
+        return None
+
+
+def _write_pid(fd: int) -> None:
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+
+
+def lock_run(run_dir: Path) -> FileLock:
+    """Hold the run directory's exclusive lock until the process exits (or ``release()``)."""
+    lock = FileLock(run_dir / LOCK_FILE, timeout=0, on_acquired=_write_pid)
+    try:
+        lock.acquire()
+    except Timeout:
+        holder = lock_holder(run_dir)
+        who = f"process {holder}" if holder else "another process"
+        raise RunDirError(
+            f"{run_dir} is in use by {who} (it holds {LOCK_FILE}): wait for that run to finish or stop it; "
+            "league.status, evaluate and report can read the run meanwhile"
+        ) from None
+    return lock
+
+
+def _digest(path: Path) -> str:
+    with path.open("rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
+
+
+def write_manifest(checkpoint_dir: Path) -> None:
+    """Record size and digest of every file of a freshly written checkpoint."""
+    files = sorted(p for p in checkpoint_dir.rglob("*") if p.is_file())
+    manifest = {str(p.relative_to(checkpoint_dir)): [p.stat().st_size, _digest(p)] for p in files}
+    (checkpoint_dir / MANIFEST_FILE).write_text(json.dumps(manifest, indent=0))
+
+
+def checkpoint_problem(checkpoint_dir: Path) -> str | None:
+    """Why a checkpoint directory cannot be resumed from, or ``None`` if it is intact."""
+    if not checkpoint_dir.is_dir():
+        return "missing"
+    manifest_path = checkpoint_dir / MANIFEST_FILE
+    if not manifest_path.exists():  # written before manifests were kept: trust a complete-looking one
+        return None if (checkpoint_dir / "rllib_checkpoint.json").is_file() else "incomplete (no rllib_checkpoint.json)"
+    try:
+        manifest = json.loads(manifest_path.read_text())
+    except (OSError, ValueError):
+        return f"damaged ({MANIFEST_FILE} unreadable)"
+    for name, (size, digest) in manifest.items():
+        path = checkpoint_dir / name
+        try:
+            if path.stat().st_size != size or _digest(path) != digest:
+                return f"damaged ({name} differs from what was written)"
+        except OSError:  # deleted, perhaps just now by a run pruning its old checkpoints
+            return f"damaged ({name} missing)"
+    return None
+
+
+def usable_checkpoints(run_dir: Path, store: LeagueStore) -> tuple[list[tuple[int, str]], list[str]]:
+    """Recorded checkpoints that are intact on disk, newest first, and what is wrong with
+    the newer ones that are not (pruned checkpoints older than the newest intact one are not listed)."""
+    usable, problems = [], []
+    for iteration, path in reversed(store.checkpoints()):
+        problem = checkpoint_problem(run_dir / path)
+        if problem is None:
+            usable.append((iteration, path))
+        elif not usable:
+            problems.append(f"the checkpoint of iteration {iteration} ({path}) is {problem}")
+    return usable, problems
+
+
+def directory_size(path: Path) -> int:
+    return sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+
+
+def is_disk_full(err: BaseException) -> bool:
+    """``OSError`` ENOSPC from a file write, or SQLite's own report of a full disk."""
+    if isinstance(err, OSError) and err.errno in (errno.ENOSPC, errno.EDQUOT):
+        return True
+    return "database or disk is full" in str(err)
+
+
+def disk_full_message(run_dir: Path, store: LeagueStore | None) -> str:
+    """What to tell the user when a write into the run directory ran out of space
+    (``store`` is ``None`` for a new run, whose directory was removed)."""
+    where = run_dir if run_dir.exists() else run_dir.parent
+    free = f"{shutil.disk_usage(where).free / 2**20:.1f} MiB free"
+    usable = usable_checkpoints(run_dir, store)[0] if store is not None else []
+    if not usable:
+        return f"disk full while creating {run_dir} ({free}); nothing was kept: free space and start again"
+    need = directory_size(run_dir / usable[0][1])
+    return (
+        f"disk full while writing into {run_dir}: {free}, a checkpoint needs about {need / 2**20:.1f} MiB; "
+        f"the last checkpoint (iteration {usable[0][0]}) is intact: free space, then resume with "
+        f"`python -m league.run --resume {run_dir}`"
+    )
