@@ -2,8 +2,8 @@
 
 * ``report.md`` with PNGs: the Table 1 analogue next to the paper's numbers, the payoff
   matrix, ratings over training (one panel per side) and a table of every player's
-  rating, learner win rates and episode returns in training (phases shaded; a line
-  breaks where its learner did not train), and 3D trajectories of a won and a lost game
+  rating, learner win rates and episode returns in the iterations their side learned
+  (phases shaded; a line breaks between a learner's phases), and 3D trajectories of a won and a lost game
   for each side (the analogues of the paper's Fig. 3 and Fig. 4).
 * ``index.html``: the same content in one self-contained file (plotly's JavaScript
   inside, so it opens offline), with the trajectories as 3D scenes to rotate, zoom and
@@ -124,6 +124,17 @@ def learner_win_rates(store: LeagueStore, players: list[Player]) -> Series:
     return dict(series)
 
 
+def while_learning(series: Series, learner_sides: dict[str, str], learning_side: dict[int, str]) -> Series:
+    """Each learner's points of the iterations in which its side learned. Episodes begun
+    before a phase change finish in the next phase's first iteration: a handful, too few
+    to plot as a learner's win rate or return."""
+    kept: Series = {}
+    for name, (x, y) in series.items():
+        points = [(i, v) for i, v in zip(x, y) if learning_side.get(i) == learner_sides.get(name)]
+        kept[name] = ([i for i, _ in points], [v for _, v in points])
+    return kept
+
+
 def phases_of(iterations: list[dict]) -> list[Phase]:
     phases: list[Phase] = []
     for row in iterations:
@@ -171,6 +182,8 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         for module, value in json.loads(row["returns"] or "{}").items():
             returns[module][0].append(row["iteration"])
             returns[module][1].append(value)
+    learner_sides = {p.name: p.side for p in players if p.kind == "learner"}
+    learning_side = {row["iteration"]: row["learner_side"] for row in iterations}
 
     # Each side's newest snapshot against a scripted opponent (the paper's team when there is one).
     scripted_teams = [t for t in teams if t.kind == "scripted"]
@@ -197,7 +210,9 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
     return ReportData(
         run=run, players=players, attackers=attackers, teams=teams, payoff=payoff, ratings=dict(ratings),
         final_ratings=league_ratings(store.counted_results(), [p.id for p in players]),
-        games=player_games(store, payoff), win_rates=learner_win_rates(store, players), returns=dict(returns),
+        games=player_games(store, payoff),
+        win_rates=while_learning(learner_win_rates(store, players), learner_sides, learning_side),
+        returns=while_learning(dict(returns), learner_sides, learning_side),
         phases=phases_of(iterations), episodes=episodes, missing_episodes=missing, summary=summary,
     )
 
