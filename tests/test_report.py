@@ -41,9 +41,11 @@ def pair_numbers(run_dir):
 def test_repeated_evaluation_leaves_games_and_interval_unchanged(run_copy):
     before, counted_before, _ = pair_numbers(run_copy)
     assert before, "the tiny run evaluates its frozen pairs at the end"
-    # The run's own evaluation played 10 games per pair; play the same fixed games twice more.
+    # Play each pair's newest evaluation games (the same fixed games) twice more; other tests
+    # may have evaluated the shared tiny run with another number of games before the copy.
+    [games] = {n for _, n in before.values()}
     for _ in range(2):
-        assert evaluate_main(["--run-dir", str(run_copy), "--episodes", "10", "--workers", "0"]) == 0
+        assert evaluate_main(["--run-dir", str(run_copy), "--episodes", str(games), "--workers", "0"]) == 0
     after, counted_after, ratings = pair_numbers(run_copy)
     assert after == before
     assert {pair: wilson_interval(*after[pair]) for pair in after} == {pair: wilson_interval(*before[pair]) for pair in before}
