@@ -277,7 +277,7 @@ def committed(run_dir: Path) -> int:
 def wait_for_iterations(proc, run_dir: Path, count: int) -> None:
     deadline = time.monotonic() + RUN_TIMEOUT
     while committed(run_dir) < count:
-        assert proc.poll() is None, proc.stdout.read()[-3000:]
+        assert proc.poll() is None, "the run ended before the test could signal it: " + proc.stdout.read()[-3000:]
         assert time.monotonic() < deadline, f"the run did not reach iteration {count} in time"
         time.sleep(0.3)
 
@@ -304,7 +304,8 @@ def stop_and_check(proc, run_dir: Path, signum: int, exit_code: int) -> int:
 
 def test_lock_readers_and_stops_by_signal_keep_the_run_continuous(tmp_path, tiny_config):
     run_dir = (tmp_path / "run").resolve()
-    first = start("--config", tiny_config(4, 600), "--run-dir", str(run_dir))
+    # Long enough (60 iterations) to be still running while the readers and signals below arrive.
+    first = start("--config", tiny_config(4, 3000), "--run-dir", str(run_dir))
     deadline = time.monotonic() + RUN_TIMEOUT
     while not (run_dir / "league.db").exists():  # the lock is taken before the database is made
         assert first.poll() is None and time.monotonic() < deadline, first.stdout.read()[-3000:]
