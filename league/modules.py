@@ -4,8 +4,11 @@ Every agent's observation arrives with the env's 22-number global state appended
 (``envs.rllib_env``, ``with_global_state``): ``obs = [own observation | global state]``.
 
 * ``ActorCriticModule``: a Gaussian policy over the own observation only, and a value
-  network over either the global state (``critic: global``, the team's MAPPO critic)
-  or the own observation (``critic: local``, plain PPO, the attacker's).
+  network over either the global state and the agent's role (``critic: global``, the
+  team's MAPPO critic) or the own observation (``critic: local``, plain PPO, the
+  attacker's). The role matters: T and D are paid differently (Eq. 10 vs 11), so at one
+  global state their values differ, and a critic blind to the role can only learn their
+  average, which biases both agents' advantages.
 * ``ScriptedModule``: a scripted player of ``envs.scripted``, reading the global state;
   it returns actions directly and is never trained.
 """
@@ -20,6 +23,7 @@ import torch
 from torch import nn
 
 from envs.config import GameConfig
+from envs.observations import ROLE_SIZE
 from envs.scripted import act_from_state
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
@@ -67,7 +71,7 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         self.actor_inputs = int(cfg["actor_inputs"])
         self.critic_input = cfg["critic"]
         total = self.observation_space.shape[0]
-        critic_inputs = total - self.actor_inputs if self.critic_input == "global" else self.actor_inputs
+        critic_inputs = total - self.actor_inputs + ROLE_SIZE if self.critic_input == "global" else self.actor_inputs
         actions = self.action_space.shape[0]
         hidden = list(cfg["hidden"])
         self.pi = mlp(self.actor_inputs, hidden, actions, last_gain=0.01)
@@ -78,7 +82,10 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         return obs[..., : self.actor_inputs]
 
     def critic_features(self, obs: torch.Tensor) -> torch.Tensor:
-        return obs[..., self.actor_inputs :] if self.critic_input == "global" else obs[..., : self.actor_inputs]
+        if self.critic_input == "local":
+            return obs[..., : self.actor_inputs]
+        # The global state, then the role one-hot that ends the own observation of T and D.
+        return torch.cat((obs[..., self.actor_inputs :], obs[..., self.actor_inputs - ROLE_SIZE : self.actor_inputs]), dim=-1)
 
     def deterministic_action(self, obs: torch.Tensor) -> torch.Tensor:
         """The Gaussian's mean: what the policy does when not exploring."""
