@@ -34,6 +34,7 @@ class MatchResult:
     steps: np.ndarray  # (N,) steps played
     returns: np.ndarray  # (N, 3) summed rewards
     trajectory: list[np.ndarray] = field(default_factory=list)  # positions (N, 3, 3) per step, if recorded
+    attacker_returns: np.ndarray | None = None  # (N, 3) A's summed rewards under methods 1, 2, 3
 
     @property
     def attacker_wins(self) -> np.ndarray:
@@ -48,14 +49,16 @@ def play(config: GameConfig, players: dict[str, Player], positions: np.ndarray, 
     game = BatchedGame(config, len(positions))
     game.reset(positions=positions)
     returns = np.zeros((game.num_games, len(AGENTS)))
+    attacker_returns = np.zeros((game.num_games, 3))
     trajectory = [game.positions.copy()] if record else []
     while game.active.any():
         actions = np.stack([players[agent].act(game) for agent in AGENTS], axis=1)
         result = game.step(actions)
         returns += result.rewards
+        attacker_returns += result.attacker_rewards
         if record:
             trajectory.append(game.positions.copy())
-    return MatchResult(game.outcome.copy(), game.steps.copy(), returns, trajectory)
+    return MatchResult(game.outcome.copy(), game.steps.copy(), returns, trajectory, attacker_returns)
 
 
 def scripted_players(attacker: str, targeter: str, defender: str) -> dict[str, Player]:

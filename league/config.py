@@ -93,9 +93,19 @@ class ProtocolPhase(Strict):
     """One phase of the paper's protocol: one side learns against the other side's pool."""
 
     learner: Side
-    episodes: int = Field(ge=1)
+    episodes: int | None = Field(None, ge=1)
+    """The phase ends once its learner has played this many episodes..."""
+    env_steps: int | None = Field(None, ge=1)
+    """...or, given instead, once this many env steps were sampled in it (a budget that does not
+    depend on how long the games last)."""
     opponents: Literal["scripted", "latest"] = "scripted"
     """``scripted``: the configured scripted players; ``latest``: the other side's newest snapshot."""
+
+    @model_validator(mode="after")
+    def _one_budget(self) -> "ProtocolPhase":
+        if (self.episodes is None) == (self.env_steps is None):
+            raise ValueError("a protocol phase needs exactly one budget: `episodes` or `env_steps`")
+        return self
 
 
 class LeagueSettings(Strict):
@@ -145,6 +155,12 @@ class EvaluationSettings(Strict):
     """Custom Ray resources each evaluation worker needs (workers are spread over the nodes)."""
     every_iterations: int = Field(0, ge=0)
     """Also evaluate the learners against their opponents every this many iterations (0: only at the end)."""
+    curve_every_env_steps: int = Field(20_000, ge=0)
+    """Learning curves: each time a learner passes another multiple of this many env steps, it is
+    played (deterministic actions, in the driver) against its curve opponents on the first
+    ``curve_episodes`` fixed games and the result stored (``league.curves``); 0: no curves."""
+    curve_episodes: int = Field(200, ge=1)
+    """Fixed evaluation games per learning-curve point (and per reference line)."""
 
 
 class RunConfig(Strict):

@@ -28,6 +28,7 @@ import numpy as np
 from envs.agents import Outcome
 from league import rllib_bridge as bridge
 from league.config import RunConfig
+from league.curves import LearningCurves
 from league.evaluation import EvaluationPool, PairResult, evaluate_pairs
 from league.payoff import aggregate, league_ratings, win_rate
 from league.pfsp import pfsp_probabilities
@@ -89,6 +90,7 @@ class Coordinator:
         self.evaluation_pool: EvaluationPool | None = None  # made at the first evaluation
         self.log: Callable[[str], None] = print  # the progress reporter's once training starts
         self.runner_health = bridge.env_runner_health(algo)
+        self.curves = LearningCurves(run, run_dir, lambda text: self.log(text))
         if state.rng:
             self.rng.bit_generator.state = state.rng
 
@@ -178,12 +180,16 @@ class Coordinator:
         st.env_steps = total_steps
         phase.env_steps += steps
         learners = self.learners(phase.side)
+        steps_before = dict(st.learner_env_steps)
         for learner in learners:  # several learners split the phase's episodes evenly (uniform draw)
             st.learner_env_steps[learner.name] = st.learner_env_steps.get(learner.name, 0) + steps // len(learners)
 
         every = self.run.evaluation.every_iterations
         started = time.perf_counter()
         evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
+        curves = self.curves.measure(
+            self.algo, self.store, learners, self.candidates(phase.side), steps_before, st.learner_env_steps
+        )
         timing = IterationTiming(sampling=seconds - learning, learning=learning, evaluation=time.perf_counter() - started)
         trained_phase = replace(phase)  # this iteration's phase, before a phase change
         snapshots = []
@@ -201,6 +207,7 @@ class Coordinator:
                 self.store.set_player_steps(learner.id, st.learner_env_steps.get(learner.name, 0))
             for r in evaluation:
                 self.store.record_evaluation(st.iteration, r.outcome_rows())
+            self.curves.record(self.store, st.iteration, curves)
             self.store.record_ratings(st.iteration, league_ratings(self.store.counted_results(), [p.id for p in self.store.players()]))
             self.store.record_iteration(
                 st.iteration,
@@ -245,7 +252,10 @@ class Coordinator:
     def phase_finished(self) -> bool:
         phase, league = self.state.phase, self.run.league
         if league.mode == "protocol":
-            return phase.episodes >= league.phases[phase.index].episodes
+            spec = league.phases[phase.index]
+            if spec.env_steps is not None:
+                return phase.env_steps >= spec.env_steps
+            return phase.episodes >= spec.episodes
         if phase.env_steps >= league.phase_env_steps:
             return True
         return phase.episodes >= league.min_phase_episodes and phase.learner_wins / phase.episodes >= league.snapshot_win_rate

@@ -137,6 +137,7 @@ def merge(results: list[MatchResult]) -> MatchResult:
         np.concatenate([r.outcome for r in results]),
         np.concatenate([r.steps for r in results]),
         np.concatenate([r.returns for r in results]),
+        attacker_returns=np.concatenate([r.attacker_returns for r in results]),
     )
 
 

@@ -72,7 +72,7 @@ class ProgressReporter:
         side = phase.side
         train_seconds = timing.sampling + timing.learning
         steps_per_second = steps / train_seconds if train_seconds > 0 else float("nan")
-        evaluated = f", eval {timing.evaluation:.1f} s" if evaluation else ""
+        evaluated = f", eval {timing.evaluation:.1f} s" if evaluation or timing.evaluation >= 0.05 else ""  # or curves
         self.message(
             f"phase {phase.index + 1}/{self.total_phases} {side:8s} | iter {st.iteration:4d} | "
             f"{st.env_steps:8d} env steps | {steps_per_second:6.0f} steps/s | "

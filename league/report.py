@@ -4,8 +4,9 @@
   matrix, ratings over training (one panel per side) and a table of every player's
   rating, learner win rates and episode returns in the iterations their side learned
   (phases shaded; a line breaks between a learner's phases), and 3D trajectories of a won and a lost game
-  for each side (the analogues of the paper's Fig. 3 and Fig. 4).
-* ``index.html``: the same content in one self-contained file (plotly's JavaScript
+  for each side (the analogues of the paper's Fig. 3 and Fig. 4), and the learning curves
+  (``league.curves``: win rate and return over env steps, with reference lines).
+* ``index.html``: the same content (without the learning curves) in one self-contained file (plotly's JavaScript
   inside, so it opens offline), with the trajectories as 3D scenes to rotate, zoom and
   step through (``league.report_html``).
 
@@ -34,6 +35,7 @@ from envs.match import play
 from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
+from league.curves import plot_run
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
 from league.payoff import ATTACKER_WINS, aggregate, league_ratings
 from league.players import Player
@@ -233,6 +235,9 @@ def table_one_rows(data: ReportData) -> list[list[str]]:
 
 TABLE_ONE_HEADER = ["method", "attacker", "win rate vs the paper's scripted team", "95% interval", "games",
                     "paper (100 rounds)"]
+CURVES_NOTE = ("Each learner, as it was every `evaluation.curve_every_env_steps` of its env steps, against its curve "
+               "opponents on the same fixed games (deterministic actions; `league.curves`), with the scripted players "
+               "of its side and its untrained version 0 on those games as horizontal lines.")
 RATINGS_HEADER = ["player", "side", "kind", "rating", "games"]
 RATINGS_NOTE = ("Every player's rating, fitted to every game counted once: the training episodes and each pair's "
                 "newest evaluation (the same fixed games played again are one measurement). A player without "
@@ -362,13 +367,14 @@ def build_report(run_dir: Path) -> Path:
 
     run = saved_run_config(run_dir)
     torch.set_num_threads(run.resources.threads_for(1))  # the games played here run torch in this process
+    out = run_dir / "report"
+    out.mkdir(exist_ok=True)
     store = LeagueStore(run_dir)
     try:
         data = gather(store, run, run_dir)
+        has_curves = plot_run(store, run, out / "curves.png")
     finally:
         store.close()
-    out = run_dir / "report"
-    out.mkdir(exist_ok=True)
     heat_map(data, out / "payoff.png")
     ratings_plot(data, out / "ratings.png")
     line_plot(data.win_rates, data.phases, "win rate in training", "learner win rates (per iteration)", out / "win_rates.png")
@@ -392,6 +398,10 @@ def build_report(run_dir: Path) -> Path:
         markdown_table(RATINGS_HEADER, rating_rows(data)),
         "## Learner win rates in training", "", "![win rates](win_rates.png)", "",
         "## Episode returns", "", "![returns](returns.png)", "",
+        "## Learning curves", "",
+        CURVES_NOTE if has_curves else "No learning curves recorded (`evaluation.curve_every_env_steps` is 0, "
+        "or no learner reached it).", "",
+        "![learning curves](curves.png)" if has_curves else "", "",
         "## Trajectories", "",
     ]
     text += [f"![{name}]({name})" for name in figures]

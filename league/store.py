@@ -26,6 +26,21 @@ from league.players import Player
 
 DB_NAME = "league.db"
 
+# Columns of one measurement on the fixed games (league.curves.GameStats): means per game of
+# the per-step rewards, without any terminal reward (derived from the wins on read).
+CURVE_STATS = (
+    "games", "attacker_wins", "attacker_return_1", "attacker_return_2", "attacker_return_3",
+    "targeter_return", "defender_return", "mean_steps",
+)
+CURVE_STATS_SQL = """games INTEGER NOT NULL,
+    attacker_wins INTEGER NOT NULL,
+    attacker_return_1 REAL NOT NULL,  -- A's reward under method 1 (Eq. 7), summed over the game
+    attacker_return_2 REAL NOT NULL,  -- method 2 (Eq. 8)
+    attacker_return_3 REAL NOT NULL,  -- method 3 (Eq. 9)
+    targeter_return REAL NOT NULL,    -- Eq. 10
+    defender_return REAL NOT NULL,    -- Eq. 11
+    mean_steps REAL NOT NULL"""
+
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS players (
     id INTEGER PRIMARY KEY,
@@ -72,7 +87,24 @@ CREATE TABLE IF NOT EXISTS checkpoints (
     created_at TEXT NOT NULL DEFAULT (datetime('now'))
 );
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-"""
+""" + """
+CREATE TABLE IF NOT EXISTS curve_points (     -- league.curves: a learner on the fixed games as it trains
+    iteration INTEGER NOT NULL,
+    learner INTEGER NOT NULL REFERENCES players(id),
+    opponent INTEGER NOT NULL REFERENCES players(id),
+    env_steps INTEGER NOT NULL,      -- the learner's env steps when measured
+    {stats}
+);
+CREATE TABLE IF NOT EXISTS curve_references (  -- league.curves: a reference player against a curve opponent
+    iteration INTEGER NOT NULL,      -- when it was measured (once per run and opponent)
+    opponent INTEGER NOT NULL REFERENCES players(id),
+    side TEXT NOT NULL,              -- the side the reference plays (the learner's)
+    kind TEXT NOT NULL,              -- 'scripted' or 'untrained' (a learner's version 0)
+    name TEXT NOT NULL,              -- display name
+    player INTEGER REFERENCES players(id),  -- the version-0 snapshot of an 'untrained' row
+    {stats}
+);
+""".format(stats=CURVE_STATS_SQL)
 
 TABLES = ("players", "matches", "ratings", "iterations", "checkpoints", "meta")
 
@@ -115,6 +147,9 @@ class LeagueStore:
             columns = {row[1] for row in self.db.execute("PRAGMA table_info(iterations)")}
             if "returns" not in columns:  # a database from before returns were recorded
                 self.db.execute("ALTER TABLE iterations ADD COLUMN returns TEXT NOT NULL DEFAULT '{}'")
+            tables = {name for (name,) in self.db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+            if "curve_points" not in tables:  # a database from before learning curves were recorded
+                self.db.executescript(f"BEGIN; {SCHEMA} COMMIT;")
         except sqlite3.DatabaseError as err:
             self.db.close()
             raise DamagedStoreError(f"{path} is damaged ({err})") from err
@@ -289,10 +324,43 @@ class LeagueStore:
     def rollback_after(self, iteration: int) -> None:
         """Forget everything written after ``iteration`` (work a resume will redo)."""
         with self.transaction():
-            for table in ("matches", "ratings"):
+            for table in ("matches", "ratings", "curve_points", "curve_references"):
                 self.db.execute(f"DELETE FROM {table} WHERE iteration > ?", (iteration,))
             self.db.execute("DELETE FROM iterations WHERE iteration > ?", (iteration,))
             self.db.execute("DELETE FROM checkpoints WHERE iteration > ?", (iteration,))
             self.db.execute("DELETE FROM players WHERE created_iteration > ?", (iteration,))
             if (self.get_meta("evaluated_iteration") or 0) > iteration:  # its evaluation rows are gone
                 self.db.execute("DELETE FROM meta WHERE key = 'evaluated_iteration'")
+
+    # ---------------------------------------------------------------- learning curves
+    def record_curve_point(self, iteration: int, learner: int, opponent: int, env_steps: int, stats: dict[str, float]) -> None:
+        """One learning-curve point; ``stats`` holds the ``CURVE_STATS`` columns."""
+        values = [stats[c] for c in CURVE_STATS]
+        self.db.execute(
+            f"INSERT INTO curve_points (iteration, learner, opponent, env_steps, {', '.join(CURVE_STATS)}) "
+            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
+            (iteration, learner, opponent, env_steps, *values),
+        )
+
+    def record_curve_reference(
+        self, iteration: int, opponent: int, side: str, kind: str, name: str, player: int | None, stats: dict[str, float]
+    ) -> None:
+        """One reference line: ``name`` (scripted, or the ``player`` at version 0) against ``opponent``."""
+        values = [stats[c] for c in CURVE_STATS]
+        self.db.execute(
+            f"INSERT INTO curve_references (iteration, opponent, side, kind, name, player, {', '.join(CURVE_STATS)}) "
+            f"VALUES (?, ?, ?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
+            (iteration, opponent, side, kind, name, player, *values),
+        )
+
+    def curve_points(self) -> list[dict[str, Any]]:
+        """Every learning-curve point (``curve_points`` columns), by learner, opponent and env steps."""
+        cursor = self.db.execute("SELECT * FROM curve_points ORDER BY learner, opponent, env_steps, iteration")
+        names = [c[0] for c in cursor.description]
+        return [dict(zip(names, row)) for row in cursor.fetchall()]
+
+    def curve_references(self) -> list[dict[str, Any]]:
+        """Every reference row (``curve_references`` columns), by opponent."""
+        cursor = self.db.execute("SELECT * FROM curve_references ORDER BY opponent, side, kind, name")
+        names = [c[0] for c in cursor.description]
+        return [dict(zip(names, row)) for row in cursor.fetchall()]

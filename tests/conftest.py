@@ -11,7 +11,7 @@ seed: 3
 ppo: {train_batch_size: 300, minibatch_size: 100, num_epochs: 2, hidden: [32, 32]}
 resources: {num_cpus: 2, num_env_runners: 0, num_envs_per_env_runner: 4}
 league: {mode: selfplay, selfplay_phases: 2, min_phase_episodes: 100000, phase_env_steps: 600}
-evaluation: {episodes: 10, every_iterations: 2}
+evaluation: {episodes: 10, every_iterations: 2, curve_every_env_steps: 300, curve_episodes: 20}
 """
 
 

@@ -62,7 +62,7 @@ def test_report_holds_the_expected_files(tiny_run):
     report = tiny_run / "report"
     text = (report / "report.md").read_text()
     assert "Table 1 analogue" in text and "| 2 | attacker-m2-v1 |" in text and "0.6253" in text
-    for name in ("payoff.png", "ratings.png", "win_rates.png", "returns.png"):
+    for name in ("payoff.png", "ratings.png", "win_rates.png", "returns.png", "curves.png"):
         assert (report / name).read_bytes()[:4] == b"\x89PNG"
         assert f"]({name})" in text
     assert list(report.glob("trajectory_attacker_*.png")) and list(report.glob("trajectory_team_*.png"))
