@@ -25,11 +25,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from envs.agents import Outcome
 from league import rllib_bridge as bridge
 from league.config import RunConfig
 from league.evaluation import EvaluationPool, PairResult, evaluate_pairs
-from league.payoff import aggregate, league_ratings, win_rate
+from league.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
 from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
 from league.progress import IterationTiming, ProgressReporter
@@ -37,7 +36,6 @@ from league.run_dir import write_manifest
 from league.stop import StopRequests
 from league.store import LeagueStore
 
-ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 CHECKPOINTS_KEPT = 2
 
 
@@ -122,16 +120,8 @@ class Coordinator:
         return scripted + snapshots
 
     def learner_win_rates(self, learner: Player, opponents: list[Player]) -> list[float]:
-        table = aggregate(self.store.match_rows("training"), ATTACKER_WINS)
-        rates = []
-        for opponent in opponents:
-            if learner.side == "attacker":
-                wins, games = table.get((learner.id, opponent.id), (0, 0))
-            else:
-                attacker_wins, games = table.get((opponent.id, learner.id), (0, 0))
-                wins = games - attacker_wins
-            rates.append(win_rate(wins, games))
-        return rates
+        table = aggregate(self.store.match_rows("training"))
+        return [win_rate(*record_against(table, learner.side, learner.id, opponent.id)) for opponent in opponents]
 
     def match_plan(self) -> tuple[bridge.MatchPlan, dict[str, dict[str, float]]]:
         """This iteration's plan, and each learner's PFSP probability per opponent name."""
@@ -171,8 +161,7 @@ class Coordinator:
             st.episodes += count
             if learner_ids & {attacker, team}:
                 phase.episodes += count
-                attacker_won = outcome in ATTACKER_WINS
-                phase.learner_wins += count if attacker_won == (phase.side == "attacker") else 0
+                phase.learner_wins += wins_of(phase.side, count if attacker_won(outcome) else 0, count)
         total_steps = bridge.sampled_env_steps(result)
         steps = total_steps - st.env_steps
         st.env_steps = total_steps
