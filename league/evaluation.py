@@ -24,6 +24,7 @@ from envs.agents import AGENTS, Outcome
 from envs.config import GameConfig
 from envs.core import BatchedGame
 from envs.match import MatchResult, Player as AgentPlayer, play
+from envs.observations import policy_input
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import ScriptedPlayer
 from league.players import Player
@@ -51,7 +52,7 @@ class LearnedAgent:
 
     @torch.no_grad()
     def act(self, game: BatchedGame) -> np.ndarray:
-        obs = np.concatenate((game.observations()[self.index], game.global_state()), axis=1)
+        obs = policy_input(game.observations()[self.index], game.global_state())
         return self.module.deterministic_action(torch.from_numpy(obs)).numpy().astype(np.float64)
 
 

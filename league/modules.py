@@ -20,6 +20,7 @@ import torch
 from torch import nn
 
 from envs.config import GameConfig
+from envs.observations import split_policy_input
 from envs.scripted import act_from_state
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
@@ -75,10 +76,11 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         self.vf = mlp(critic_inputs, hidden, 1, last_gain=1.0)
 
     def actor_features(self, obs: torch.Tensor) -> torch.Tensor:
-        return obs[..., : self.actor_inputs]
+        return split_policy_input(obs, self.actor_inputs)[0]
 
     def critic_features(self, obs: torch.Tensor) -> torch.Tensor:
-        return obs[..., self.actor_inputs :] if self.critic_input == "global" else obs[..., : self.actor_inputs]
+        own, state = split_policy_input(obs, self.actor_inputs)
+        return state if self.critic_input == "global" else own
 
     def deterministic_action(self, obs: torch.Tensor) -> torch.Tensor:
         """The Gaussian's mean: what the policy does when not exploring."""
@@ -104,7 +106,7 @@ class ScriptedModule(TorchRLModule):
 
     def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
         obs = batch[Columns.OBS]
-        states = obs[..., self.actor_inputs :].detach().cpu().numpy()
+        states = split_policy_input(obs, self.actor_inputs)[1].detach().cpu().numpy()
         actions = act_from_state(self.game_config, self.agent, self.name, states)
         return {Columns.ACTIONS: torch.as_tensor(actions, dtype=torch.float32)}
 

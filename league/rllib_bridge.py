@@ -25,7 +25,9 @@ import numpy as np
 import torch
 
 from envs.agents import AGENTS
-from envs.rllib_env import TargetDefenseMultiAgentEnv
+from envs.observations import observation_size
+from envs.rllib_env import TargetDefenseMultiAgentEnv, policy_input_space
+from envs.single import action_space
 from league.batched_env_runner import MATCHES_KEY, SEPARATOR, BatchedEnvRunner, log_match
 from league.config import RunConfig
 from league.modules import ActorCriticModule, ScriptedModule
@@ -61,24 +63,17 @@ def env_config(run: RunConfig) -> dict[str, Any]:
     return {**run.game.model_dump(), "with_global_state": True}
 
 
-def probe_env(run: RunConfig) -> TargetDefenseMultiAgentEnv:
-    return TargetDefenseMultiAgentEnv(env_config(run))
-
-
 def actor_inputs(run: RunConfig, agent: str) -> int:
     """Length of the agent's own observation (the global state follows it)."""
-    from envs.pettingzoo_env import TargetDefenseEnv
-
-    return TargetDefenseEnv(run.game).observation_space(agent).shape[0]
+    return observation_size(run.game, AGENTS.index(agent))
 
 
 def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) -> RLModuleSpec:
-    env = probe_env(run)
     agent = "attacker" if side == "attacker" else "targeter"
     return RLModuleSpec(
         module_class=ActorCriticModule,
-        observation_space=env.observation_spaces[agent],
-        action_space=env.action_spaces[agent],
+        observation_space=policy_input_space(run.game, agent),
+        action_space=action_space(run.game),
         model_config={
             "actor_inputs": actor_inputs(run, agent),
             "critic": "local" if side == "attacker" else "global",
@@ -89,11 +84,10 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
 
 
 def scripted_spec(run: RunConfig, agent: str, name: str) -> RLModuleSpec:
-    env = probe_env(run)
     return RLModuleSpec(
         module_class=ScriptedModule,
-        observation_space=env.observation_spaces[agent],
-        action_space=env.action_spaces[agent],
+        observation_space=policy_input_space(run.game, agent),
+        action_space=action_space(run.game),
         model_config={"agent": agent, "name": name, "game": run.game.model_dump(), "actor_inputs": actor_inputs(run, agent)},
     )
 
