@@ -155,7 +155,7 @@ class Coordinator:
 
         st, phase = self.state, self.state.phase
         st.iteration += 1
-        rows = self.match_rows(result)
+        rows = self.outcome_rows(result)
         learner_ids = {p.id for p in self.learners(phase.side)}
         for attacker, team, outcome, count in rows:
             st.episodes += count
@@ -222,7 +222,8 @@ class Coordinator:
             self.log(f"env runners back to {healthy} of {total} healthy ({restarts} restarts so far)")
         self.runner_health = (healthy, total, restarts)
 
-    def match_rows(self, result: dict[str, Any]) -> list[tuple[int, int, str, int]]:
+    def outcome_rows(self, result: dict[str, Any]) -> list[tuple[int, int, str, int]]:
+        """``(attacker id, team id, outcome, count)`` of the episodes that ended in this iteration."""
         attackers, teams = self.module_players()
         rows = []
         for (attacker_module, targeter_module, defender_module), outcome, count in bridge.match_counts(result):
