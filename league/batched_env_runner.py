@@ -48,6 +48,7 @@ from envs.agents import AGENTS, Outcome
 from envs.scripted import ScriptedPlayer
 from envs.single import infos_of_steps
 from envs.vector_env import TargetDefenseVectorEnv, VectorStep
+from league import rllib_compat as compat
 from league.modules import ScriptedModule
 from league.train_batch import gae
 from ray.rllib.callbacks.utils import make_callback
@@ -55,7 +56,6 @@ from ray.rllib.core.columns import Columns
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 from ray.rllib.env.single_agent_episode import SingleAgentEpisode
-from ray.rllib.env.utils.infinite_lookback_buffer import InfiniteLookbackBuffer
 from ray.rllib.evaluation.postprocessing import Postprocessing
 from ray.rllib.utils.metrics import (
     EPISODE_AGENT_RETURN_MEAN,
@@ -103,8 +103,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
     """
 
     def __init__(self, config: Any, **kwargs: Any):
-        # AlgorithmConfig keeps user connector factories in private fields only.
-        if config._env_to_module_connector is not None or config._module_to_env_connector is not None:
+        if compat.has_custom_connectors(config):
             raise ValueError("BatchedEnvRunner runs RLlib's default connectors only: use the standard sampler")
         self.games: TargetDefenseVectorEnv | None = None
         super().__init__(config=config, **kwargs)
@@ -135,7 +134,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         if num_timesteps is not None and num_episodes is not None:
             raise ValueError("give either num_timesteps or num_episodes, not both")
         explore = self.config.explore if explore is None else explore
-        self.metrics.log_value(key=WEIGHTS_SEQ_NO, value=self._weights_seq_no, window=1)
+        self.metrics.log_value(key=WEIGHTS_SEQ_NO, value=compat.weights_seq_no(self), window=1)
         with self.metrics.log_time(SAMPLE_TIMER):
             if num_episodes is not None:
                 self._reset_all()
@@ -152,7 +151,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 episodes += self._ongoing_chunks(rows, t)
         make_callback(
             "on_sample_end",
-            callbacks_objects=self._callbacks,
+            callbacks_objects=compat.env_runner_callbacks(self),
             callbacks_functions=self.config.callbacks_on_sample_end,
             kwargs=dict(env_runner=self, metrics_logger=self.metrics, samples=episodes),
         )
@@ -168,7 +167,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         """
         if self.games is None:
             raise ValueError(f"{self} has no env: it is a local runner beside remote ones")
-        self.metrics.log_value(key=WEIGHTS_SEQ_NO, value=self._weights_seq_no, window=1)
+        self.metrics.log_value(key=WEIGHTS_SEQ_NO, value=compat.weights_seq_no(self), window=1)
         with self.metrics.log_time(SAMPLE_TIMER):
             if self._needs_seeded_reset:
                 self._reset_all()
@@ -179,7 +178,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
     # ------------------------------------------------------------------ games
     def _reset_all(self) -> None:
         n = self.num_envs
-        self._observations = self.games.reset(seed=self._seed if self._needs_seeded_reset else None)
+        self._observations = self.games.reset(seed=compat.env_runner_seed(self) if self._needs_seeded_reset else None)
         self._needs_seeded_reset = False
         self._episode_ids = [""] * n
         self._module_ids: list[str] = []  # modules of the games, indexed by `self._modules`
@@ -191,9 +190,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self._earlier_chunks: dict[str, list[MultiAgentEpisode]] = defaultdict(list)
         self._finished: list[tuple] = []  # (length, agent returns, module returns, seconds) per episode
         for game in range(n):
-            self._new_episode(game)
+            self._start_episode(game)
 
-    def _new_episode(self, game: int) -> None:
+    def _start_episode(self, game: int) -> None:
         """A fresh episode id for ``game``, and its agents' modules from the mapping."""
         # The league's mapping (`MatchPlan`) reads only the episode's id: no episode object
         # is built per game (RLlib's ids are uuid4 hex strings too).
@@ -243,7 +242,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                     else:
                         self._game_ended(game, int(self._env_t[game]) + t - start, int(result.outcome[game]))
                 for game in ended:
-                    self._new_episode(game)
+                    self._start_episode(game)
                 observed = AGENTS if episodes else self._agents_that_observe()
                 rows.restart(t, ended, self.games.reset_games(ended, observed))
                 rows.chunk_start[ended] = t
@@ -315,7 +314,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         for agent in agents:
             keys = rows.output_keys.get(modules[agent], ())
             outputs = {key: rows.outputs[(agent, key)][start:end, game].copy() for key in keys}
-            outputs[WEIGHTS_SEQ_NO] = np.full(length, self._weights_seq_no)
+            outputs[WEIGHTS_SEQ_NO] = np.full(length, compat.weights_seq_no(self))
             agent_episodes[agent] = SingleAgentEpisode(
                 id_=f"{episode_id}-{agent}",
                 agent_id=agent,
@@ -341,13 +340,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             env_t_started=env_t,
             len_lookback_buffer=0,
         )
-        # Every agent acts on every env step: agent time = env time.
-        episode.agent_episodes = agent_episodes
-        episode.env_t = env_t + length
-        for agent in agents:
-            episode.agent_t_started[agent] = env_t
-            episode.env_t_to_agent_t[agent] = InfiniteLookbackBuffer(list(range(env_t, env_t + length + 1)))
-        episode.is_terminated = ended  # the data went in as numpy arrays: no `to_numpy()` needed
+        compat.lockstep_episode(episode, agent_episodes, env_t, length, terminated=ended)
         if ended:
             self._episode_ended(episode, game, env_t + length)
         return episode
@@ -372,7 +365,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self._finished.append((length, returns, dict(module_returns), duration))
         make_callback(
             "on_episode_end",
-            callbacks_objects=self._callbacks,
+            callbacks_objects=compat.env_runner_callbacks(self),
             callbacks_functions=self.config.callbacks_on_episode_end,
             kwargs=dict(
                 episode=episode,
@@ -457,7 +450,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
 
     def _count_steps(self, env_steps: int, episodes: int, module_steps: np.ndarray) -> None:
         if env_steps:
-            self._log_env_steps(metric=self._metrics_num_env_steps_sampled, num_steps=env_steps)
+            compat.count_sampled_env_steps(self, env_steps)
         self.metrics.log_value(NUM_ENV_STEPS_SAMPLED, env_steps, reduce="sum")
         self.metrics.log_value(NUM_ENV_STEPS_SAMPLED_LIFETIME, env_steps, reduce="lifetime_sum", with_throughput=True)
         self.metrics.log_value(NUM_EPISODES, episodes, reduce="sum")

@@ -205,8 +205,10 @@ class Coordinator:
             if checkpoint is not None:
                 self.store.record_checkpoint(st.iteration, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(st)))
         self.prune_checkpoints()
+        learner_names = [p.name for p in self.store.players(kind="learner")]
         progress.iteration(
-            self, result, weights, trained_phase, steps, timing, [self.store_name(c) for c in snapshots], evaluation
+            st.iteration, st.env_steps, len(self.store.players()), bridge.learner_stats(result, learner_names), weights,
+            trained_phase, steps, timing, [self.store_name(c) for c in snapshots], evaluation,
         )
 
     def report_runner_health(self) -> None:

@@ -57,13 +57,10 @@ class LearnedAgent:
 
 
 def load_module(path: str | Path) -> torch.nn.Module:
-    from ray.rllib.core.rl_module.rl_module import RLModule
+    """A saved player's RLModule, in eval mode (``league.rllib_bridge.load_module``)."""
+    from league import rllib_bridge
 
-    if not Path(path, "module_state.pkl").exists():
-        raise FileNotFoundError(f"no saved module at {path} (module_state.pkl missing)")
-    module = RLModule.from_checkpoint(str(Path(path).resolve()))
-    module.eval()
-    return module
+    return rllib_bridge.load_module(path)
 
 
 def agents_of(player: Player, run_dir: Path, load=None) -> dict[str, AgentPlayer]:

@@ -164,7 +164,7 @@ def intact_checkpoints(run_dir: Path, store: LeagueStore) -> tuple[list[tuple[in
 
 def resume_run(run_dir: Path, run: RunConfig, store: LeagueStore, say) -> Coordinator:
     """Restore the newest intact checkpoint; roll the database back to it."""
-    from ray.rllib.algorithms.algorithm import Algorithm
+    from league import rllib_bridge as bridge
 
     usable, problems = intact_checkpoints(run_dir, store)
     iteration, path = usable[0]
@@ -180,7 +180,7 @@ def resume_run(run_dir: Path, run: RunConfig, store: LeagueStore, say) -> Coordi
             f"the league database was rolled back from iteration {last_committed} to {iteration}"
         )
     _, _, state_json = store.last_checkpoint()
-    algo = Algorithm.from_checkpoint(str(run_dir / path))
+    algo = bridge.restore_algorithm(run_dir / path)
     return Coordinator(run, run_dir, store, algo, RunState.from_json(state_json))
 
 
