@@ -23,8 +23,11 @@ COMPAT = "league/rllib_compat.py"
 ADAPTER = "league/rllib_bridge.py"
 # Modules whose classes subclass RLlib's (EnvRunner, Algorithm, Learner, RLModule, callbacks, connectors).
 RLLIB_SUBCLASSING = ("league.batched_env_runner", "league.rllib_bridge", "league.modules")
-# Writes of a MultiAgentEpisode's internals (what RLlib's add_env_step keeps consistent).
-EPISODE_INTERNALS = re.compile(r"\.(agent_episodes|env_t|agent_t_started|env_t_to_agent_t|is_terminated)\b[^=\n]*=(?!=)")
+# Writes of a MultiAgentEpisode's internals (what RLlib's add_env_step keeps consistent), on
+# the names our code gives episodes.
+EPISODE_INTERNALS = re.compile(
+    r"\b(?:\w*episode\w*|chunk)\.(agent_episodes|env_t|agent_t_started|env_t_to_agent_t|is_terminated)\b[^=\n]*=(?!=)"
+)
 # RLModule's documented extension points: private by name, overridden by design.
 OVERRIDE_HOOKS = {"_forward", "_forward_train", "_forward_exploration", "_forward_inference"}
 CHECKPOINTS_AND_RESULTS = re.compile(r"\bfrom_checkpoint\b|\bLEARNER_RESULTS\b|\[\s*[\"']learners[\"']\s*\]")
@@ -106,6 +109,7 @@ def test_the_scans_find_planted_violations(tmp_path):
         COMPAT: "seed = runner._seed\n",
         "league/runner.py": 'x = config._env_to_module_connector  # reads a private field\ny = "ray._common"\n',
         "league/chunk.py": "episode.env_t = 3\nepisode.is_terminated = True\nok = episode.env_t == 3\n",
+        "league/rollout.py": "self.env_t[game] = 0  # the rollout's own counter, not an episode's\n",
         "league/run.py": "algo = Algorithm.from_checkpoint(path)\nstats = result['learners']\n",
     })
     assert scan(root, foreign_private_attributes, {COMPAT}) == {"league/runner.py": ["config._env_to_module_connector (line 1)"]}
