@@ -4,13 +4,8 @@ One iteration: pick the learner's opponents by PFSP (``MatchPlan``), ``algo.trai
 record who played whom with which outcome, snapshot the learner when its phase ends,
 checkpoint, and commit the iteration to the league database in one transaction.
 
-Phases:
-
-* ``protocol`` (the paper): the configured phases in order, each a number of episodes
-  of one side learning against the other side's scripted players or newest snapshot.
-* ``selfplay``: attacker and team learn in turn; a phase ends, with a snapshot, when the
-  learner wins ``snapshot_win_rate`` of at least ``min_phase_episodes`` episodes of the
-  phase, or after ``phase_env_steps`` env steps.
+Which side learns in a phase, against whom, and when the phase ends is the run's
+schedule (``league.schedule``: the paper's protocol, or self-play).
 """
 
 from __future__ import annotations
@@ -33,20 +28,11 @@ from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
 from league.progress import IterationTiming, ProgressReporter
 from league.run_dir import write_manifest
+from league.schedule import PhaseState, schedule_of
 from league.stop import StopRequests
 from league.store import LeagueStore
 
 CHECKPOINTS_KEPT = 2
-
-
-@dataclass
-class PhaseState:
-    index: int
-    side: str
-    start_iteration: int
-    episodes: int = 0
-    learner_wins: int = 0
-    env_steps: int = 0
 
 
 @dataclass
@@ -67,23 +53,25 @@ class RunState:
 
 
 def phase_count(run: RunConfig) -> int:
-    return len(run.league.phases) if run.league.mode == "protocol" else run.league.selfplay_phases
+    return schedule_of(run).phases
 
 
 def phase_side(run: RunConfig, index: int) -> str:
-    if run.league.mode == "protocol":
-        return run.league.phases[index].learner
-    return "attacker" if index % 2 == 0 else "team"
+    return schedule_of(run).side(index)
 
 
 class Coordinator:
-    def __init__(self, run: RunConfig, run_dir: Path, store: LeagueStore, algo: Any, state: RunState):
+    def __init__(
+        self, run: RunConfig, run_dir: Path, store: LeagueStore, algo: Any, state: RunState, seed: int | None = None
+    ):
+        """``seed`` starts a new run's generator; a resumed run's ``state`` restores it."""
         self.run = run
         self.run_dir = run_dir
         self.store = store
         self.algo = algo
         self.state = state
-        self.rng = np.random.default_rng()
+        self.schedule = schedule_of(run)
+        self.rng = np.random.default_rng(seed)
         self.evaluation_pool: EvaluationPool | None = None  # made at the first evaluation
         self.log: Callable[[str], None] = print  # the progress reporter's once training starts
         self.runner_health = bridge.env_runner_health(algo)
@@ -108,16 +96,11 @@ class Coordinator:
     def candidates(self, side: str) -> list[Player]:
         """The opponents of the ``side`` learner in the current phase."""
         pool_side = other_side(side)
-        scripted = self.store.players(side=pool_side, kind="scripted")
-        snapshots = self.store.players(side=pool_side, kind="snapshot")
-        if self.run.league.mode == "protocol":
-            spec = self.run.league.phases[self.state.phase.index]
-            if spec.opponents == "latest":
-                if not snapshots:
-                    raise RuntimeError(f"phase {spec} wants the latest {pool_side} snapshot, but there is none")
-                return [snapshots[-1]]
-            return scripted
-        return scripted + snapshots
+        return self.schedule.opponents(
+            self.state.phase.index,
+            self.store.players(side=pool_side, kind="scripted"),
+            self.store.players(side=pool_side, kind="snapshot"),
+        )
 
     def learner_win_rates(self, learner: Player, opponents: list[Player]) -> list[float]:
         table = aggregate(self.store.match_rows("training"))
@@ -166,9 +149,8 @@ class Coordinator:
         steps = total_steps - st.env_steps
         st.env_steps = total_steps
         phase.env_steps += steps
-        learners = self.learners(phase.side)
-        for learner in learners:  # several learners split the phase's episodes evenly (uniform draw)
-            st.learner_env_steps[learner.name] = st.learner_env_steps.get(learner.name, 0) + steps // len(learners)
+        for name, played in bridge.learner_env_steps(result, self.store.players(kind="learner")).items():
+            st.learner_env_steps[name] = st.learner_env_steps.get(name, 0) + played
 
         every = self.run.evaluation.every_iterations
         started = time.perf_counter()
@@ -176,7 +158,7 @@ class Coordinator:
         timing = IterationTiming(sampling=seconds - learning, learning=learning, evaluation=time.perf_counter() - started)
         trained_phase = replace(phase)  # this iteration's phase, before a phase change
         snapshots = []
-        if self.phase_finished():
+        if self.schedule.finished(phase):
             snapshots = [self.snapshot(learner) for learner in self.learners(phase.side)]
             self.next_phase()
         due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
@@ -234,20 +216,12 @@ class Coordinator:
             rows.append((attacker.id, team.id, outcome, count))
         return rows
 
-    def phase_finished(self) -> bool:
-        phase, league = self.state.phase, self.run.league
-        if league.mode == "protocol":
-            return phase.episodes >= league.phases[phase.index].episodes
-        if phase.env_steps >= league.phase_env_steps:
-            return True
-        return phase.episodes >= league.min_phase_episodes and phase.learner_wins / phase.episodes >= league.snapshot_win_rate
-
     def next_phase(self) -> None:
         index = self.state.phase.index + 1
-        if index >= phase_count(self.run):
+        if index >= self.schedule.phases:
             self.state.training_done = True
             return
-        side = phase_side(self.run, index)
+        side = self.schedule.side(index)
         self.state.phase = PhaseState(index=index, side=side, start_iteration=self.state.iteration)
         self.set_trainable(side)
 
@@ -272,6 +246,19 @@ class Coordinator:
                 torch_threads=self.run.resources.torch_threads,
             )
         return evaluate_pairs(self.run.game, self.run_dir, pairs, ev.episodes, pool=self.evaluation_pool)
+
+    def begin(self, check: Callable[[], None] = lambda: None) -> None:
+        """A new run's start: the untrained policies join the league as version 0 (the baseline
+        every later snapshot is measured against), and checkpoint 0 is written and committed.
+        ``check`` runs before the commit (a stop request raises there)."""
+        initial = [self.snapshot(learner) for learner in self.store.players(kind="learner")]
+        checkpoint = self.checkpoint()
+        check()
+        with self.store.transaction():
+            for columns in initial:
+                self.store.add_player(0, **columns)
+            self.state.rng = self.rng.bit_generator.state
+            self.store.record_checkpoint(0, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(self.state)))
 
     # ------------------------------------------------------------ snapshots, checkpoints
     @staticmethod

@@ -23,7 +23,7 @@ from rich.console import Console
 from tensorboardX import SummaryWriter
 
 if TYPE_CHECKING:
-    from league.coordinator import PhaseState
+    from league.schedule import PhaseState
     from league.evaluation import PairResult
 
 TRAIN_METRICS = ("policy_loss", "vf_loss", "entropy", "mean_kl_loss")

@@ -55,6 +55,7 @@ from ray.rllib.utils.metrics import (
     LEARNER_UPDATE_TIMER,
     NUM_ENV_STEPS_SAMPLED,
     NUM_ENV_STEPS_SAMPLED_LIFETIME,
+    NUM_MODULE_STEPS_SAMPLED,
     NUM_MODULE_STEPS_TRAINED_LIFETIME,
     SYNCH_WORKER_WEIGHTS_TIMER,
     TIMERS,
@@ -193,6 +194,18 @@ def env_runner_health(algo: Algorithm) -> tuple[int, int, int]:
 
 def sampled_env_steps(result: dict[str, Any]) -> int:
     return int(result.get(ENV_RUNNER_RESULTS, {}).get(NUM_ENV_STEPS_SAMPLED_LIFETIME, 0))
+
+
+def learner_env_steps(result: dict[str, Any], learners: list[Player]) -> dict[str, int]:
+    """Env steps of the games each learner played in this ``train()``, from the runners' exact
+    per-module counts: a module's agent steps over the agents it plays in a game (the team's
+    module plays T and D)."""
+    played = result.get(ENV_RUNNER_RESULTS, {}).get(NUM_MODULE_STEPS_SAMPLED, {})
+    steps = {}
+    for learner in learners:
+        count = played.get(learner.name, 0)
+        steps[learner.name] = int(count) // len(learner.modules()) if count == count else 0  # NaN: idle this time
+    return steps
 
 
 class LeaguePPO(PPO):
