@@ -127,6 +127,8 @@ class Coordinator:
 
     # ------------------------------------------------------------ iteration
     def train_iteration(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
+        """Train once against this iteration's opponents, count what was played, evaluate when
+        due, end the phase when the schedule says so, checkpoint when due, commit, report."""
         plan, weights = self.match_plan()
         bridge.set_match_plan(self.algo, plan)
         started = time.perf_counter()
@@ -138,6 +140,30 @@ class Coordinator:
 
         st, phase = self.state, self.state.phase
         st.iteration += 1
+        rows, steps = self.count_played(result)
+        every = self.run.evaluation.every_iterations
+        started = time.perf_counter()
+        evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
+        timing = IterationTiming(sampling=seconds - learning, learning=learning, evaluation=time.perf_counter() - started)
+        trained_phase = replace(phase)  # this iteration's phase, before a phase change
+        snapshots = []
+        if self.schedule.finished(phase):
+            snapshots = [self.snapshot(learner) for learner in self.learners(phase.side)]
+            self.next_phase()
+        due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
+        checkpoint = self.checkpoint() if due else None
+        self.commit(result, trained_phase, rows, snapshots, evaluation, checkpoint, steps, seconds)
+        self.prune_checkpoints()
+        learner_names = [p.name for p in self.store.players(kind="learner")]
+        progress.iteration(
+            st.iteration, st.env_steps, len(self.store.players()), bridge.learner_stats(result, learner_names), weights,
+            trained_phase, steps, timing, [self.store_name(c) for c in snapshots], evaluation,
+        )
+
+    def count_played(self, result: dict[str, Any]) -> tuple[list[tuple[int, int, str, int]], int]:
+        """Add this ``train()``'s episodes, wins and env steps to the run's and the phase's
+        counts; returns its outcome rows and env steps."""
+        st, phase = self.state, self.state.phase
         rows = self.outcome_rows(result)
         learner_ids = {p.id for p in self.learners(phase.side)}
         for attacker, team, outcome, count in rows:
@@ -151,19 +177,15 @@ class Coordinator:
         phase.env_steps += steps
         for name, played in bridge.learner_env_steps(result, self.store.players(kind="learner")).items():
             st.learner_env_steps[name] = st.learner_env_steps.get(name, 0) + played
+        return rows, steps
 
-        every = self.run.evaluation.every_iterations
-        started = time.perf_counter()
-        evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
-        timing = IterationTiming(sampling=seconds - learning, learning=learning, evaluation=time.perf_counter() - started)
-        trained_phase = replace(phase)  # this iteration's phase, before a phase change
-        snapshots = []
-        if self.schedule.finished(phase):
-            snapshots = [self.snapshot(learner) for learner in self.learners(phase.side)]
-            self.next_phase()
-        due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
-        checkpoint = self.checkpoint() if due else None
-
+    def commit(self, result: dict[str, Any], phase: PhaseState, rows: list[tuple[int, int, str, int]],
+               snapshots: list[dict[str, Any]], evaluation: list[PairResult], checkpoint: Path | None, steps: int,
+               seconds: float) -> None:
+        """The iteration's one transaction: results, new snapshots, steps, ratings, the
+        iteration's row (of ``phase``, the one it trained in) and, when one was written, its
+        checkpoint with the run state."""
+        st = self.state
         with self.store.transaction():
             self.store.record_matches(st.iteration, "training", rows)
             for columns in snapshots:
@@ -186,12 +208,6 @@ class Coordinator:
             st.rng = self.rng.bit_generator.state
             if checkpoint is not None:
                 self.store.record_checkpoint(st.iteration, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(st)))
-        self.prune_checkpoints()
-        learner_names = [p.name for p in self.store.players(kind="learner")]
-        progress.iteration(
-            st.iteration, st.env_steps, len(self.store.players()), bridge.learner_stats(result, learner_names), weights,
-            trained_phase, steps, timing, [self.store_name(c) for c in snapshots], evaluation,
-        )
 
     def report_runner_health(self) -> None:
         """Say when remote env runners are lost (a node died) or come back."""
