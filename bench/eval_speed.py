@@ -18,9 +18,11 @@ import numpy as np
 import ray
 import torch
 
+from envs.agents import TARGETER
+from envs.observations import observation_size, split_policy_input
 from envs.rllib_env import TargetDefenseMultiAgentEnv
 from envs.scenarios import evaluation_scenarios
-from envs.scripted import act_from_state
+from envs.scripted import PAPER_TEAM, act_from_state
 from league.config import RunConfig, saved_run_config
 from league.evaluation import EvaluationPool, evaluate_pairs, load_module
 from league.store import LeagueStore
@@ -35,11 +37,11 @@ def rllib_env_rate(run: RunConfig, module, positions: np.ndarray) -> float:
         while not done:
             with torch.no_grad():
                 attacker = module.deterministic_action(torch.from_numpy(obs["attacker"][None]))[0].numpy()
-            state = obs["targeter"][None, -22:]
+            state = split_policy_input(obs["targeter"][None], observation_size(run.game, TARGETER))[1]
             actions = {
                 "attacker": attacker,
-                "targeter": act_from_state(run.game, "targeter", "avoid_attacker", state)[0],
-                "defender": act_from_state(run.game, "defender", "pure_pursuit", state)[0],
+                "targeter": act_from_state(run.game, "targeter", PAPER_TEAM["targeter"], state)[0],
+                "defender": act_from_state(run.game, "defender", PAPER_TEAM["defender"], state)[0],
             }
             obs, _, terminateds, _, _ = env.step(actions)
             done = terminateds["__all__"]
@@ -58,7 +60,7 @@ def main() -> None:
     run = saved_run_config(args.run_dir)
     store = LeagueStore(args.run_dir)
     players = {p.name: p for p in store.players()}
-    attacker, team = players[args.player], players["scripted-avoid_attacker+pure_pursuit"]
+    attacker, team = players[args.player], next(p for p in store.players() if p.is_paper_team)
     run_dir = args.run_dir.resolve()
 
     started = time.perf_counter()

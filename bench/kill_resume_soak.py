@@ -24,26 +24,31 @@ import os
 import random
 import shutil
 import signal
-import sqlite3
 import subprocess
 import sys
 import time
 from collections import Counter
 from pathlib import Path
 
+from league.store import DB_NAME, DamagedStoreError, LeagueStore
+
 SIGNALS = {"SIGKILL": signal.SIGKILL, "SIGTERM": signal.SIGTERM, "SIGINT": signal.SIGINT}
 EXPECTED_EXIT = {"SIGKILL": -9, "SIGTERM": 143, "SIGINT": 130}
 
 
-def query(run_dir: Path, sql: str) -> list[tuple]:
-    with sqlite3.connect(run_dir / "league.db", timeout=60) as db:
-        return db.execute(sql).fetchall()
+def read_store(run_dir: Path, read):
+    """``read(store)`` on the run's league database, opened for this one read."""
+    store = LeagueStore(run_dir)
+    try:
+        return read(store)
+    finally:
+        store.close()
 
 
 def committed(run_dir: Path) -> int:
     try:
-        return query(run_dir, "SELECT COALESCE(MAX(iteration), 0) FROM iterations")[0][0]
-    except sqlite3.Error:  # not created yet
+        return read_store(run_dir, lambda store: (store.last_iteration() or {}).get("iteration", 0))
+    except (FileNotFoundError, DamagedStoreError):  # not created yet, or removed for a fresh start
         return 0
 
 
@@ -80,19 +85,21 @@ def last_error(log_path: Path) -> str:
 def check(run_dir: Path) -> list[str]:
     """What is wrong with the finished run (empty: nothing)."""
     problems = []
-    integrity = query(run_dir, "PRAGMA integrity_check")
-    if integrity != [("ok",)]:
+    store = LeagueStore(run_dir)
+    try:
+        integrity = store.integrity_check()
+        numbers = [row["iteration"] for row in store.iteration_rows()]
+        episodes = store.last_iteration()["episodes"]
+        matches = sum(count for *_, count in store.match_rows("training"))
+        snapshots = [(p.side, p.reward_method or 0, p.version, p.checkpoint) for p in store.players(kind="snapshot")]
+    finally:
+        store.close()
+    if integrity != "ok":
         problems.append(f"integrity_check: {integrity}")
-    numbers = [i for (i,) in query(run_dir, "SELECT iteration FROM iterations ORDER BY iteration")]
     if numbers != list(range(1, len(numbers) + 1)):
         problems.append(f"iterations not consecutive: {numbers}")
-    episodes = query(run_dir, "SELECT episodes FROM iterations ORDER BY iteration DESC LIMIT 1")[0][0]
-    matches = query(run_dir, "SELECT SUM(count) FROM matches WHERE source = 'training'")[0][0]
     if episodes != matches:
         problems.append(f"episode total {episodes} != recorded training matches {matches}")
-    snapshots = query(
-        run_dir, "SELECT side, COALESCE(reward_method, 0), version, checkpoint FROM players WHERE kind = 'snapshot'"
-    )
     by_line = Counter((side, method) for side, method, _, _ in snapshots)
     for (side, method), count in by_line.items():
         versions = sorted(v for s, m, v, _ in snapshots if (s, m) == (side, method))
@@ -153,7 +160,7 @@ def main() -> int:
             exits[(name, code)] += 1
             # A run killed before its first checkpoint has nothing to resume: it exits 2 on --resume
             # (or removed its directory); start it anew then.
-            fresh = not (run_dir / "league.db").exists() or not query(run_dir, "SELECT 1 FROM checkpoints")
+            fresh = not (run_dir / DB_NAME).exists() or not read_store(run_dir, LeagueStore.checkpoints)
             print(f"kill {kills:2d}: {name:7s} {moment}; exit {code}; at iteration {committed(run_dir)}", flush=True)
             if code not in (EXPECTED_EXIT[name], 0, 2):
                 unexpected.append(f"kill {kills}: {name} gave exit {code}")

@@ -13,37 +13,20 @@ frozen attacker), then prints, from the run's evaluation, with 95% Wilson interv
 from __future__ import annotations
 
 import argparse
-import sqlite3
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-from envs.agents import Outcome
 from league.evaluation import wilson_interval
+from league.payoff import aggregate
+from league.store import LeagueStore
 
-ATTACKER_WINS = tuple(o.label for o in Outcome if o.attacker_wins)
 
-
-def rate(db: sqlite3.Connection, attacker: str, team: str) -> tuple[float, tuple[float, float], int]:
-    """Attacker win rate of the evaluation pair given by player names."""
-    names = {}
-    for pid, side, kind, version, method, sa, st, sd in db.execute(
-        "SELECT id, side, kind, version, reward_method, scripted_attacker, scripted_targeter, scripted_defender FROM players"
-    ):
-        if kind == "scripted":
-            name = f"scripted-{sa}" if side == "attacker" else f"scripted-{st}+{sd}"
-        elif kind == "snapshot":
-            name = f"attacker-m{method}-v{version}" if side == "attacker" else f"team-v{version}"
-        else:
-            continue
-        names[name] = pid
-    rows = db.execute(
-        "SELECT outcome, SUM(count) FROM matches WHERE source = 'evaluation' AND attacker = ? AND team = ? GROUP BY outcome",
-        (names[attacker], names[team]),
-    ).fetchall()
-    games = sum(n for _, n in rows)
-    wins = sum(n for outcome, n in rows if outcome in ATTACKER_WINS)
+def rate(store: LeagueStore, attacker: str, team: str) -> tuple[float, tuple[float, float], int]:
+    """Attacker win rate of the evaluation pair given by player names (frozen players)."""
+    ids = {p.name: p.id for p in store.players() if p.kind != "learner"}
+    wins, games = aggregate(store.newest_evaluation_rows())[(ids[attacker], ids[team])]
     return wins / games, wilson_interval(wins, games), games
 
 
@@ -67,16 +50,18 @@ def main() -> int:
             command += ["--set", item]
         subprocess.run(command, check=True)
     wall = time.perf_counter() - started
-    db = sqlite3.connect(run_dir / "league.db")
-    method = db.execute("SELECT reward_method FROM players WHERE kind = 'learner' AND side = 'attacker'").fetchone()[0]
+    store = LeagueStore(run_dir)
+    method = store.players(side="attacker", kind="learner")[0].reward_method
     trained, untrained = f"attacker-m{method}-v1", f"attacker-m{method}-v0"
-    scripted_team, trained_team = "scripted-avoid_attacker+pure_pursuit", "team-v1"
-    episodes = db.execute("SELECT episodes, env_steps FROM iterations ORDER BY iteration DESC LIMIT 1").fetchone()
-    print(f"run {run_dir}: {episodes[0]} training episodes, {episodes[1]} env steps, wall {wall:.0f} s")
-    vs_scripted = rate(db, trained, scripted_team)
-    lead = rate(db, "scripted-lead_intercept", scripted_team)
-    initial = rate(db, untrained, scripted_team)
-    vs_trained_team = rate(db, trained, trained_team)
+    scripted_team = next(p for p in store.players(side="team", kind="scripted") if p.is_paper_team).name
+    trained_team = "team-v1"
+    last = store.last_iteration()
+    print(f"run {run_dir}: {last['episodes']} training episodes, {last['env_steps']} env steps, wall {wall:.0f} s")
+    vs_scripted = rate(store, trained, scripted_team)
+    lead = rate(store, "scripted-lead_intercept", scripted_team)
+    initial = rate(store, untrained, scripted_team)
+    vs_trained_team = rate(store, trained, trained_team)
+    store.close()
     show(f"trained {trained} vs scripted team", vs_scripted)
     show("scripted lead_intercept vs scripted team", lead)
     show(f"untrained {untrained} vs scripted team", initial)

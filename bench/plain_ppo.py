@@ -1,7 +1,7 @@
 """The ceiling for training speed: a minimal plain-PyTorch PPO on the same game core.
 
 CleanRL-style, one file, no Ray: the config's attacker against its first scripted team,
-on ``envs.vector_env`` (the games the fast sampler steps), with the network, batch,
+played by ``league.rollout`` (the games and step loop of the fast sampler), with the network, batch,
 minibatch, epochs and loss of ``league.rllib_bridge``'s PPO: a Gaussian policy with a
 state-independent log-std and a separate value network (``league.modules.mlp``), GAE
 (``league.train_batch``), standardised advantages, the clipped surrogate, the value
@@ -19,10 +19,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from envs.scripted import ScriptedPlayer
+from envs.agents import Outcome
 from envs.vector_env import TargetDefenseVectorEnv
 from league.config import RunConfig, load_config
 from league.modules import INITIAL_LOG_STD, mlp
+from league.rollout import Rollout, ScriptedOnState
 from league.train_batch import gae, standardized
 
 KL_COEFF, KL_TARGET = 0.2, 0.01  # RLlib's PPO defaults, which the league's PPO keeps
@@ -43,41 +44,39 @@ def train_plain(run: RunConfig, env_steps: int) -> dict:
     """Train the attacker for at least ``env_steps``; env-steps/s after one warm-up iteration."""
     torch.manual_seed(run.seed)
     ppo, games = run.ppo, run.resources.num_envs_per_env_runner
-    env = TargetDefenseVectorEnv(run.game.model_dump(), games)
     team = run.league.scripted_teams[0]
-    scripted = {"targeter": ScriptedPlayer("targeter", team.targeter), "defender": ScriptedPlayer("defender", team.defender)}
+    rollout = Rollout(TargetDefenseVectorEnv(run.game.model_dump(), games), lambda agent, episode_id: agent)
+    rollout.reset(seed=run.seed)
     method = run.game.attacker_reward
-    obs = env.reset(seed=run.seed)["attacker"]
-    agent = Agent(obs.shape[1], ppo.hidden)
+    obs_size = rollout.observations["attacker"].shape[1]
+    agent = Agent(obs_size, ppo.hidden)
+
+    def attacker(obs: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        with torch.no_grad():
+            dist = agent.dist(torch.from_numpy(obs))
+            action = dist.sample()
+        return action.numpy(), {"logp": dist.log_prob(action).sum(-1).numpy()}
+
+    policies = {"attacker": attacker, "targeter": ScriptedOnState(team.targeter), "defender": ScriptedOnState(team.defender)}
     optimizer = torch.optim.Adam(agent.parameters(), lr=ppo.lr)
     kl_coeff = KL_COEFF
     rows = -(-ppo.train_batch_size // games)
     steps, start, iteration = 0, None, 0
     rng = np.random.default_rng(run.seed)
     while steps < env_steps:
-        observations = np.zeros((rows + 1, games, obs.shape[1]), dtype=np.float32)
-        actions = np.zeros((rows, games, 2), dtype=np.float32)
-        logps, rewards, ended = (np.zeros((rows, games)) for _ in range(3))
-        for t in range(rows):
-            observations[t] = obs
-            with torch.no_grad():
-                dist = agent.dist(torch.from_numpy(obs))
-                action = dist.sample()
-                logps[t] = dist.log_prob(action).sum(-1).numpy()
-            actions[t] = action.numpy()
-            step = env.step({"attacker": actions[t], **{a: p.act(env.core) for a, p in scripted.items()}})
-            rewards[t], ended[t] = step.attacker_rewards[:, method - 1], step.done
-            obs = step.observations["attacker"]
-            if step.done.any():
-                finished = np.flatnonzero(step.done)
-                obs = obs.copy()
-                obs[finished] = env.reset_games(finished)["attacker"]
-        observations[rows] = obs
+        played, _, _, _ = rollout.play(
+            rows, None, lambda r, t: rollout.act_by_module(r, t, policies.__getitem__), on_game_end=lambda *_: None,
+            observed=lambda: ("attacker",),  # the scripted team acts on the games' state
+        )
+        observations = played.observations["attacker"]  # rows + 1: the last one is bootstrapped
+        actions, logps = played.actions["attacker"], played.outputs[("attacker", "logp")].astype(np.float64)
+        rewards = played.attacker_rewards[:, :, method - 1]
+        ended = (played.outcome != int(Outcome.RUNNING)).astype(np.float64)
         with torch.no_grad():
             values = agent.vf(torch.from_numpy(observations)).squeeze(-1).numpy().astype(np.float64)
         advantages, targets = gae(rewards, values[:-1], values[-1], ended, ppo.gamma, ppo.lambda_)
         batch = {
-            "obs": torch.from_numpy(observations[:-1].reshape(-1, obs.shape[1])),
+            "obs": torch.from_numpy(observations[:-1].reshape(-1, obs_size)),
             "actions": torch.from_numpy(actions.reshape(-1, 2)),
             "logp": torch.from_numpy(logps.reshape(-1)).float(),
             "advantages": torch.from_numpy(standardized(advantages.reshape(-1))).float(),

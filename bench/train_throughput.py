@@ -28,18 +28,18 @@ import numpy as np
 import ray
 import torch
 
-from envs.agents import Outcome
 from envs.match import play
 from envs.scenarios import evaluation_scenarios
+from envs.observations import split_policy_input
 from envs.scripted import ScriptedPlayer
 from league.config import RunConfig, load_config
 from league.evaluation import LearnedAgent, wilson_interval
+from league.payoff import attacker_won
 from league.players import Player
 from league.rllib_bridge import MatchPlan, build_config, match_counts, set_trainable
 
 from plain_ppo import train_plain  # bench/ beside this file
 
-ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 EVALUATION_GAMES = 1000
 
 
@@ -66,7 +66,7 @@ def train(run: RunConfig, env_steps: int, target: float, window: int) -> dict:
         iterations += 1
         steps += result["env_runners"]["num_env_steps_sampled"]
         for _, outcome, count in match_counts(result):
-            recent.extend([outcome in ATTACKER_WINS] * count)
+            recent.extend([attacker_won(outcome)] * count)
         if reached is None and len(recent) == window and np.mean(recent) >= target:
             reached = (time.perf_counter() - start, steps)
     wall = time.perf_counter() - start
@@ -97,8 +97,8 @@ class PlainPolicy(torch.nn.Module):
         self.agent = agent
 
     def deterministic_action(self, obs: torch.Tensor) -> torch.Tensor:
-        own = self.agent.pi[0].in_features  # the league's observation is followed by the global state
-        return self.agent.pi(obs[..., :own])
+        own = self.agent.pi[0].in_features  # plain PPO's actor reads the own observation only
+        return self.agent.pi(split_policy_input(obs, own)[0])
 
 
 def line(name: str, r: dict, target: float) -> str:

@@ -25,3 +25,7 @@ class Outcome(IntEnum):
     def attacker_wins(self) -> bool:
         return self in (Outcome.CAPTURED, Outcome.TIMEOUT)
 
+
+# The Outcome values the attacker wins, for arrays of outcomes (``np.isin``).
+ATTACKER_WIN_VALUES = tuple(int(o) for o in Outcome if o.attacker_wins)
+

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from envs import rewards
-from envs.agents import ATTACKER, DEFENDER, TARGETER, Outcome
+from envs.agents import ATTACKER, ATTACKER_WIN_VALUES, DEFENDER, TARGETER, Outcome
 from envs.config import GameConfig
 from envs.geometry import angle_between, intercept_time, lead_intercept, norm
 from envs.kinematics import Arcs, heading_vectors, limit_turn, turned, wrap_to_pi
@@ -34,7 +34,7 @@ EVENT_PAIRS = np.array([[TARGETER, ATTACKER], [TARGETER, TERMINAL_BODY], [ATTACK
 # Gamma = ceil(x) counts x within this relative distance above an integer as that integer:
 # 2 |T0| / v_T carries ~1e-16 relative rounding (2 * 8.255 / 0.13 = 127.00000000000001).
 TIME_LIMIT_ROUNDING = 1e-9
-RUNNING, TIMEOUT, CAPTURED = int(Outcome.RUNNING), int(Outcome.TIMEOUT), int(Outcome.CAPTURED)
+RUNNING, TIMEOUT = int(Outcome.RUNNING), int(Outcome.TIMEOUT)
 
 
 @dataclass
@@ -169,7 +169,7 @@ class BatchedGame:
         reward, attacker_rewards = self._rewards(before, after, headings)
         done = running & (outcome != RUNNING)
         if cfg.terminal_reward:
-            attacker_won = (outcome == CAPTURED) | (outcome == TIMEOUT)
+            attacker_won = np.isin(outcome, ATTACKER_WIN_VALUES)
             bonus = np.where(done & attacker_won, cfg.terminal_reward, np.where(done, -cfg.terminal_reward, 0.0))
             reward = reward + bonus[:, None] * np.array([1.0, -1.0, -1.0])
             attacker_rewards = attacker_rewards + bonus[:, None]

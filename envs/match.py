@@ -15,7 +15,7 @@ from typing import Protocol
 
 import numpy as np
 
-from envs.agents import AGENTS, Outcome
+from envs.agents import AGENTS, ATTACKER_WIN_VALUES, Outcome
 from envs.config import GameConfig
 from envs.core import BatchedGame
 from envs.scenarios import SCENARIO_SETS, evaluation_scenarios
@@ -38,7 +38,7 @@ class MatchResult:
 
     @property
     def attacker_wins(self) -> np.ndarray:
-        return (self.outcome == Outcome.CAPTURED) | (self.outcome == Outcome.TIMEOUT)
+        return np.isin(self.outcome, ATTACKER_WIN_VALUES)
 
     def outcome_counts(self) -> dict[str, int]:
         return {o.label: int(np.sum(self.outcome == o)) for o in Outcome if o != Outcome.RUNNING}

@@ -38,6 +38,11 @@ Global state (critic input, 22 numbers): positions of A, T, D (9, scaled); headi
 T, D as ``(cos yaw, sin yaw, pitch / (pi/2))`` (9: unlike a unit vector this keeps the
 yaw at vertical pitch, so the state fixes the game exactly); distances A-T, D-A,
 T-terminal (3, scaled); time left (1).
+
+A learned policy's input is ``[own observation | global state]``: its actor reads the
+first part, a centralized critic (and a scripted player hosted in RLlib) the second.
+``policy_input`` builds it, ``split_policy_input`` takes it apart, ``policy_input_size``
+gives its length from the config alone.
 """
 
 from __future__ import annotations
@@ -63,6 +68,26 @@ ROLE_ONE_HOT = {TARGETER: (1.0, 0.0), DEFENDER: (0.0, 1.0)}
 def observation_size(config: GameConfig, agent: int) -> int:
     base = PAPER_SIZE if config.observation == "paper" else RICH_SIZE
     return base if agent == ATTACKER else base + ROLE_SIZE
+
+
+def policy_input_size(config: GameConfig, agent: int) -> int:
+    """Length of ``agent``'s policy input: its observation, then the global state."""
+    return observation_size(config, agent) + GLOBAL_STATE_SIZE
+
+
+def policy_input(observation: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """``[observation | global state]`` along the last axis (one game or a batch)."""
+    return np.concatenate((observation, state), axis=-1)
+
+
+def split_policy_input(inputs, own_size: int):
+    """``(own observation, global state)`` of policy inputs: numpy arrays or torch tensors, any leading axes."""
+    return inputs[..., :own_size], inputs[..., own_size:]
+
+
+def role_of(observation):
+    """The role one-hot that ends T's and D's own observation (numpy or torch, any leading axes)."""
+    return observation[..., -ROLE_SIZE:]
 
 
 def _with_role(obs: np.ndarray, agent: int) -> np.ndarray:

@@ -40,8 +40,8 @@ class TargetDefenseEnv(ParallelEnv):
     the game ended raises ``RuntimeError``.
 
     ## Observation Space
-    ``Box(-inf, inf)``; layouts ``paper`` (15 numbers, 17 for T and D) and ``rich`` (25,
-    27 for T and D) are tabled in ``envs.observations``. ``state()`` gives the 22-number
+    ``Box(-inf, inf)``; layouts ``paper`` (15 numbers, 17 for T and D) and ``rich`` (21,
+    23 for T and D) are tabled in ``envs.observations``. ``state()`` gives the 22-number
     global state of a centralized critic.
 
     ## Kinematics
@@ -52,8 +52,9 @@ class TargetDefenseEnv(ParallelEnv):
 
     ## Rewards
     A: one of the paper's methods 1, 2, 3 (``attacker_reward``); T and D: Eq. 10, 11 with
-    the sign fixed (rewards are negated costs). Optional ``terminal_reward`` of +-1 to
-    the winner / loser. See ``envs.rewards``.
+    the sign fixed (rewards are negated costs). Optional ``terminal_reward`` (any float
+    ``>= 0``, default 0): ``+terminal_reward`` to the winner's agents and ``-terminal_reward``
+    to the loser's in the game's last step. See ``envs.rewards``.
 
     ## Readings of the paper (``GameConfig`` options)
     * ``axis_length``: ``0.1`` (default), ``L`` bounds the true heading change to ``v / L``;

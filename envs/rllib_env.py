@@ -16,8 +16,13 @@ from ray.rllib.env.multi_agent_env import MultiAgentEnv
 
 from envs.agents import AGENTS
 from envs.config import GameConfig
-from envs.observations import GLOBAL_STATE_SIZE
-from envs.single import SingleGame
+from envs.observations import policy_input, policy_input_size
+from envs.single import SingleGame, observation_space
+
+
+def policy_input_space(config: GameConfig, agent: str) -> spaces.Box:
+    """The observation space of an env made ``with_global_state``: ``[own observation | global state]``."""
+    return spaces.Box(-np.inf, np.inf, shape=(policy_input_size(config, AGENTS.index(agent)),), dtype=np.float32)
 
 
 class TargetDefenseMultiAgentEnv(MultiAgentEnv):
@@ -32,20 +37,14 @@ class TargetDefenseMultiAgentEnv(MultiAgentEnv):
         self.possible_agents = list(AGENTS)
         self.agents = list(AGENTS)
         self.action_spaces = dict(self.game.action_spaces)
-        self.observation_spaces = {
-            agent: self._extended(space) if self.with_global_state else space
-            for agent, space in self.game.observation_spaces.items()
-        }
-
-    @staticmethod
-    def _extended(space: spaces.Box) -> spaces.Box:
-        return spaces.Box(-np.inf, np.inf, shape=(space.shape[0] + GLOBAL_STATE_SIZE,), dtype=np.float32)
+        space = policy_input_space if self.with_global_state else observation_space
+        self.observation_spaces = {agent: space(self.config, agent) for agent in AGENTS}
 
     def _observe(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         if not self.with_global_state:
             return obs
         state = self.game.state()
-        return {agent: np.concatenate((o, state)) for agent, o in obs.items()}
+        return {agent: policy_input(o, state) for agent, o in obs.items()}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         self.agents = list(AGENTS)

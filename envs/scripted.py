@@ -1,6 +1,7 @@
 """Scripted players (``shared/design.md`` section 3), each acting on the whole batch.
 
-A player maps the batched game state to the direction it wants to fly, ``(N, 3)``;
+A player maps the batched game state (a ``GameView``: a ``BatchedGame``, or games
+decoded from their global states) to the direction it wants to fly, ``(N, 3)``;
 ``ScriptedPlayer.act`` turns that into an action in the game's action mode.
 
 | role     | name                      | rule                                                       |
@@ -22,13 +23,12 @@ A player maps the batched game state to the direction it wants to fly, ``(N, 3)`
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Protocol
 
 import numpy as np
 
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER
 from envs.config import GameConfig
-from envs.core import BatchedGame
 from envs.geometry import lead_intercept, norm, unit
 from envs.kinematics import heading_vectors, headings_of, wrap_to_pi
 from envs.observations import decode_global_state
@@ -38,25 +38,49 @@ NAVIGATION_GAIN = 3.0
 # How far behind D (seen from A) the avoiding targeter aims.
 SHELTER_DISTANCE = 0.3
 
-Direction = Callable[[BatchedGame], np.ndarray]
 
 
-def _velocities(game: BatchedGame) -> np.ndarray:
+class GameView(Protocol):
+    """What a scripted player reads of ``N`` games; ``envs.core.BatchedGame`` is one."""
+
+    config: GameConfig
+    positions: np.ndarray  # (N, 3 agents, 3)
+    headings: np.ndarray  # (N, 3 agents, 2): yaw, pitch
+    speeds: np.ndarray  # (3 agents,)
+
+
+@dataclass(frozen=True)
+class DecodedGames:
+    """Games known only by their global states: the ``GameView`` of ``act_from_state``."""
+
+    config: GameConfig
+    positions: np.ndarray
+    headings: np.ndarray
+
+    @property
+    def speeds(self) -> np.ndarray:
+        return np.asarray(self.config.speeds)
+
+
+Direction = Callable[[GameView], np.ndarray]
+
+
+def _velocities(game: GameView) -> np.ndarray:
     """Current velocities ``(N, 3, 3)``: speed times heading."""
     return heading_vectors(game.headings) * game.speeds[None, :, None]
 
 
-def attacker_pure_pursuit(game: BatchedGame) -> np.ndarray:
+def attacker_pure_pursuit(game: GameView) -> np.ndarray:
     return game.positions[:, TARGETER] - game.positions[:, ATTACKER]
 
 
-def attacker_lead_intercept(game: BatchedGame) -> np.ndarray:
+def attacker_lead_intercept(game: GameView) -> np.ndarray:
     a, t = game.positions[:, ATTACKER], game.positions[:, TARGETER]
     aim = lead_intercept(a, game.config.v_attacker, t, _velocities(game)[:, TARGETER])
     return aim - a
 
 
-def attacker_proportional_navigation(game: BatchedGame) -> np.ndarray:
+def attacker_proportional_navigation(game: GameView) -> np.ndarray:
     velocity = _velocities(game)
     los = game.positions[:, TARGETER] - game.positions[:, ATTACKER]
     closing = velocity[:, TARGETER] - velocity[:, ATTACKER]
@@ -68,11 +92,11 @@ def attacker_proportional_navigation(game: BatchedGame) -> np.ndarray:
     return np.where(behind[:, None], los, navigation)
 
 
-def targeter_straight(game: BatchedGame) -> np.ndarray:
+def targeter_straight(game: GameView) -> np.ndarray:
     return -game.positions[:, TARGETER]
 
 
-def targeter_is_safe(game: BatchedGame) -> np.ndarray:
+def targeter_is_safe(game: GameView) -> np.ndarray:
     """``(N,)``: T flying straight at the terminal gets into its sphere before A can capture it.
 
     T aims at ``E``, the nearest point of the terminal sphere. A can be within its capture
@@ -90,17 +114,17 @@ def targeter_is_safe(game: BatchedGame) -> np.ndarray:
     return (to_terminal <= cfg.terminal_sphere_radius) | (margin > 0)
 
 
-def targeter_avoid_attacker(game: BatchedGame) -> np.ndarray:
+def targeter_avoid_attacker(game: GameView) -> np.ndarray:
     a, t, d = game.positions[:, ATTACKER], game.positions[:, TARGETER], game.positions[:, DEFENDER]
     shelter = d + SHELTER_DISTANCE * unit(d - a)
     return np.where(targeter_is_safe(game)[:, None], -t, shelter - t)
 
 
-def defender_pure_pursuit(game: BatchedGame) -> np.ndarray:
+def defender_pure_pursuit(game: GameView) -> np.ndarray:
     return game.positions[:, ATTACKER] - game.positions[:, DEFENDER]
 
 
-def defender_bisector_intercept(game: BatchedGame) -> np.ndarray:
+def defender_bisector_intercept(game: GameView) -> np.ndarray:
     a, t, d = game.positions[:, ATTACKER], game.positions[:, TARGETER], game.positions[:, DEFENDER]
     path = t - a
     offset = a - d
@@ -126,7 +150,7 @@ PLAYERS: dict[str, dict[str, Direction]] = {
 PAPER_TEAM = {"targeter": "avoid_attacker", "defender": "pure_pursuit"}
 
 
-def direction_to_action(game: BatchedGame, agent: int, direction: np.ndarray) -> np.ndarray:
+def direction_to_action(game: GameView, agent: int, direction: np.ndarray) -> np.ndarray:
     """Action ``(N, 2)`` in the game's action mode that turns ``agent`` toward ``direction``."""
     cfg = game.config
     current = game.headings[:, agent]
@@ -144,9 +168,7 @@ def act_from_state(config: GameConfig, agent: str, name: str, states: np.ndarray
     For hosts that hold observations rather than a ``BatchedGame`` (an RLlib module).
     """
     positions, headings, _ = decode_global_state(config, states)
-    game = BatchedGame(config, len(positions))
-    game.positions, game.headings = positions, headings
-    return ScriptedPlayer(agent, name).act(game)
+    return ScriptedPlayer(agent, name).act(DecodedGames(config, positions, headings))
 
 
 @dataclass(frozen=True)
@@ -162,6 +184,6 @@ class ScriptedPlayer:
         if self.name not in PLAYERS[self.agent]:
             raise ValueError(f"unknown scripted {self.agent} {self.name!r}; expected one of {sorted(PLAYERS[self.agent])}")
 
-    def act(self, game: BatchedGame) -> np.ndarray:
+    def act(self, game: GameView) -> np.ndarray:
         direction = PLAYERS[self.agent][self.name](game)
         return direction_to_action(game, AGENTS.index(self.agent), direction)

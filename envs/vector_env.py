@@ -20,7 +20,7 @@ import numpy as np
 from envs.agents import AGENTS
 from envs.config import GameConfig
 from envs.core import BatchedGame
-from envs.observations import global_state, observe
+from envs.observations import global_state, observe, policy_input
 from envs.scenarios import UNIFORMS_PER_START, positions_from_uniform
 from envs.single import step_infos
 
@@ -81,7 +81,7 @@ class TargetDefenseVectorEnv:
         observations = observe(self.config, positions, headings, time_left, [AGENTS.index(a) for a in agents])
         if self.with_global_state:
             state = global_state(self.config, positions, headings, time_left)
-            observations = [np.concatenate((obs, state), axis=1) for obs in observations]
+            observations = [policy_input(obs, state) for obs in observations]
         return dict(zip(agents, observations))
 
     def step(self, actions: dict[str, np.ndarray], agents: tuple[str, ...] = AGENTS) -> VectorStep:

@@ -18,7 +18,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from envs.config import GameConfig
-from envs.scripted import PLAYERS
+from envs.scripted import PAPER_TEAM, PLAYERS
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
 RUN_CONFIG_FILE = "config.yaml"  # the validated config a run keeps in its directory
@@ -78,8 +78,8 @@ class Resources(Strict):
 
 
 class ScriptedTeam(Strict):
-    targeter: str = "avoid_attacker"
-    defender: str = "pure_pursuit"
+    targeter: str = PAPER_TEAM["targeter"]
+    defender: str = PAPER_TEAM["defender"]
 
     @model_validator(mode="after")
     def _known(self) -> "ScriptedTeam":

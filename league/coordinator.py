@@ -4,13 +4,8 @@ One iteration: pick the learner's opponents by PFSP (``MatchPlan``), ``algo.trai
 record who played whom with which outcome, snapshot the learner when its phase ends,
 checkpoint, and commit the iteration to the league database in one transaction.
 
-Phases:
-
-* ``protocol`` (the paper): the configured phases in order, each a number of episodes
-  of one side learning against the other side's scripted players or newest snapshot.
-* ``selfplay``: attacker and team learn in turn; a phase ends, with a snapshot, when the
-  learner wins ``snapshot_win_rate`` of at least ``min_phase_episodes`` episodes of the
-  phase, or after ``phase_env_steps`` env steps.
+Which side learns in a phase, against whom, and when the phase ends is the run's
+schedule (``league.schedule``: the paper's protocol, or self-play).
 """
 
 from __future__ import annotations
@@ -25,31 +20,20 @@ from typing import Any, Callable
 
 import numpy as np
 
-from envs.agents import Outcome
 from league import rllib_bridge as bridge
 from league.config import RunConfig
 from league.curves import LearningCurves
 from league.evaluation import EvaluationPool, PairResult, evaluate_pairs
-from league.payoff import aggregate, league_ratings, win_rate
+from league.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
 from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
 from league.progress import IterationTiming, ProgressReporter
 from league.run_dir import write_manifest
+from league.schedule import PhaseState, schedule_of
 from league.stop import StopRequests
 from league.store import LeagueStore
 
-ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 CHECKPOINTS_KEPT = 2
-
-
-@dataclass
-class PhaseState:
-    index: int
-    side: str
-    start_iteration: int
-    episodes: int = 0
-    learner_wins: int = 0
-    env_steps: int = 0
 
 
 @dataclass
@@ -70,23 +54,25 @@ class RunState:
 
 
 def phase_count(run: RunConfig) -> int:
-    return len(run.league.phases) if run.league.mode == "protocol" else run.league.selfplay_phases
+    return schedule_of(run).phases
 
 
 def phase_side(run: RunConfig, index: int) -> str:
-    if run.league.mode == "protocol":
-        return run.league.phases[index].learner
-    return "attacker" if index % 2 == 0 else "team"
+    return schedule_of(run).side(index)
 
 
 class Coordinator:
-    def __init__(self, run: RunConfig, run_dir: Path, store: LeagueStore, algo: Any, state: RunState):
+    def __init__(
+        self, run: RunConfig, run_dir: Path, store: LeagueStore, algo: Any, state: RunState, seed: int | None = None
+    ):
+        """``seed`` starts a new run's generator; a resumed run's ``state`` restores it."""
         self.run = run
         self.run_dir = run_dir
         self.store = store
         self.algo = algo
         self.state = state
-        self.rng = np.random.default_rng()
+        self.schedule = schedule_of(run)
+        self.rng = np.random.default_rng(seed)
         self.evaluation_pool: EvaluationPool | None = None  # made at the first evaluation
         self.log: Callable[[str], None] = print  # the progress reporter's once training starts
         self.runner_health = bridge.env_runner_health(algo)
@@ -112,28 +98,15 @@ class Coordinator:
     def candidates(self, side: str) -> list[Player]:
         """The opponents of the ``side`` learner in the current phase."""
         pool_side = other_side(side)
-        scripted = self.store.players(side=pool_side, kind="scripted")
-        snapshots = self.store.players(side=pool_side, kind="snapshot")
-        if self.run.league.mode == "protocol":
-            spec = self.run.league.phases[self.state.phase.index]
-            if spec.opponents == "latest":
-                if not snapshots:
-                    raise RuntimeError(f"phase {spec} wants the latest {pool_side} snapshot, but there is none")
-                return [snapshots[-1]]
-            return scripted
-        return scripted + snapshots
+        return self.schedule.opponents(
+            self.state.phase.index,
+            self.store.players(side=pool_side, kind="scripted"),
+            self.store.players(side=pool_side, kind="snapshot"),
+        )
 
     def learner_win_rates(self, learner: Player, opponents: list[Player]) -> list[float]:
-        table = aggregate(self.store.match_rows("training"), ATTACKER_WINS)
-        rates = []
-        for opponent in opponents:
-            if learner.side == "attacker":
-                wins, games = table.get((learner.id, opponent.id), (0, 0))
-            else:
-                attacker_wins, games = table.get((opponent.id, learner.id), (0, 0))
-                wins = games - attacker_wins
-            rates.append(win_rate(wins, games))
-        return rates
+        table = aggregate(self.store.match_rows("training"))
+        return [win_rate(*record_against(table, learner.side, learner.id, opponent.id)) for opponent in opponents]
 
     def match_plan(self) -> tuple[bridge.MatchPlan, dict[str, dict[str, float]]]:
         """This iteration's plan, and each learner's PFSP probability per opponent name."""
@@ -156,6 +129,8 @@ class Coordinator:
 
     # ------------------------------------------------------------ iteration
     def train_iteration(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
+        """Train once against this iteration's opponents, count what was played, evaluate when
+        due, end the phase when the schedule says so, checkpoint when due, commit, report."""
         plan, weights = self.match_plan()
         bridge.set_match_plan(self.algo, plan)
         started = time.perf_counter()
@@ -167,23 +142,9 @@ class Coordinator:
 
         st, phase = self.state, self.state.phase
         st.iteration += 1
-        rows = self.match_rows(result)
-        learner_ids = {p.id for p in self.learners(phase.side)}
-        for attacker, team, outcome, count in rows:
-            st.episodes += count
-            if learner_ids & {attacker, team}:
-                phase.episodes += count
-                attacker_won = outcome in ATTACKER_WINS
-                phase.learner_wins += count if attacker_won == (phase.side == "attacker") else 0
-        total_steps = bridge.sampled_env_steps(result)
-        steps = total_steps - st.env_steps
-        st.env_steps = total_steps
-        phase.env_steps += steps
-        learners = self.learners(phase.side)
         steps_before = dict(st.learner_env_steps)
-        for learner in learners:  # several learners split the phase's episodes evenly (uniform draw)
-            st.learner_env_steps[learner.name] = st.learner_env_steps.get(learner.name, 0) + steps // len(learners)
-
+        rows, steps = self.count_played(result)
+        learners = self.learners(phase.side)
         every = self.run.evaluation.every_iterations
         started = time.perf_counter()
         evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
@@ -193,12 +154,45 @@ class Coordinator:
         timing = IterationTiming(sampling=seconds - learning, learning=learning, evaluation=time.perf_counter() - started)
         trained_phase = replace(phase)  # this iteration's phase, before a phase change
         snapshots = []
-        if self.phase_finished():
+        if self.schedule.finished(phase):
             snapshots = [self.snapshot(learner) for learner in self.learners(phase.side)]
             self.next_phase()
         due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
         checkpoint = self.checkpoint() if due else None
+        self.commit(result, trained_phase, rows, snapshots, evaluation, checkpoint, steps, seconds)
+        self.prune_checkpoints()
+        learner_names = [p.name for p in self.store.players(kind="learner")]
+        progress.iteration(
+            st.iteration, st.env_steps, len(self.store.players()), bridge.learner_stats(result, learner_names), weights,
+            trained_phase, steps, timing, [self.store_name(c) for c in snapshots], evaluation,
+        )
 
+    def count_played(self, result: dict[str, Any]) -> tuple[list[tuple[int, int, str, int]], int]:
+        """Add this ``train()``'s episodes, wins and env steps to the run's and the phase's
+        counts; returns its outcome rows and env steps."""
+        st, phase = self.state, self.state.phase
+        rows = self.outcome_rows(result)
+        learner_ids = {p.id for p in self.learners(phase.side)}
+        for attacker, team, outcome, count in rows:
+            st.episodes += count
+            if learner_ids & {attacker, team}:
+                phase.episodes += count
+                phase.learner_wins += wins_of(phase.side, count if attacker_won(outcome) else 0, count)
+        total_steps = bridge.sampled_env_steps(result)
+        steps = total_steps - st.env_steps
+        st.env_steps = total_steps
+        phase.env_steps += steps
+        for name, played in bridge.learner_env_steps(result, self.store.players(kind="learner")).items():
+            st.learner_env_steps[name] = st.learner_env_steps.get(name, 0) + played
+        return rows, steps
+
+    def commit(self, result: dict[str, Any], phase: PhaseState, rows: list[tuple[int, int, str, int]],
+               snapshots: list[dict[str, Any]], evaluation: list[PairResult], checkpoint: Path | None, steps: int,
+               seconds: float) -> None:
+        """The iteration's one transaction: results, new snapshots, steps, ratings, the
+        iteration's row (of ``phase``, the one it trained in) and, when one was written, its
+        checkpoint with the run state."""
+        st = self.state
         with self.store.transaction():
             self.store.record_matches(st.iteration, "training", rows)
             for columns in snapshots:
@@ -222,10 +216,6 @@ class Coordinator:
             st.rng = self.rng.bit_generator.state
             if checkpoint is not None:
                 self.store.record_checkpoint(st.iteration, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(st)))
-        self.prune_checkpoints()
-        progress.iteration(
-            self, result, weights, trained_phase, steps, timing, [self.store_name(c) for c in snapshots], evaluation
-        )
 
     def report_runner_health(self) -> None:
         """Say when remote env runners are lost (a node died) or come back."""
@@ -240,7 +230,8 @@ class Coordinator:
             self.log(f"env runners back to {healthy} of {total} healthy ({restarts} restarts so far)")
         self.runner_health = (healthy, total, restarts)
 
-    def match_rows(self, result: dict[str, Any]) -> list[tuple[int, int, str, int]]:
+    def outcome_rows(self, result: dict[str, Any]) -> list[tuple[int, int, str, int]]:
+        """``(attacker id, team id, outcome, count)`` of the episodes that ended in this iteration."""
         attackers, teams = self.module_players()
         rows = []
         for (attacker_module, targeter_module, defender_module), outcome, count in bridge.match_counts(result):
@@ -249,23 +240,12 @@ class Coordinator:
             rows.append((attacker.id, team.id, outcome, count))
         return rows
 
-    def phase_finished(self) -> bool:
-        phase, league = self.state.phase, self.run.league
-        if league.mode == "protocol":
-            spec = league.phases[phase.index]
-            if spec.env_steps is not None:
-                return phase.env_steps >= spec.env_steps
-            return phase.episodes >= spec.episodes
-        if phase.env_steps >= league.phase_env_steps:
-            return True
-        return phase.episodes >= league.min_phase_episodes and phase.learner_wins / phase.episodes >= league.snapshot_win_rate
-
     def next_phase(self) -> None:
         index = self.state.phase.index + 1
-        if index >= phase_count(self.run):
+        if index >= self.schedule.phases:
             self.state.training_done = True
             return
-        side = phase_side(self.run, index)
+        side = self.schedule.side(index)
         self.state.phase = PhaseState(index=index, side=side, start_iteration=self.state.iteration)
         self.set_trainable(side)
 
@@ -290,6 +270,19 @@ class Coordinator:
                 torch_threads=self.run.resources.torch_threads,
             )
         return evaluate_pairs(self.run.game, self.run_dir, pairs, ev.episodes, pool=self.evaluation_pool)
+
+    def begin(self, check: Callable[[], None] = lambda: None) -> None:
+        """A new run's start: the untrained policies join the league as version 0 (the baseline
+        every later snapshot is measured against), and checkpoint 0 is written and committed.
+        ``check`` runs before the commit (a stop request raises there)."""
+        initial = [self.snapshot(learner) for learner in self.store.players(kind="learner")]
+        checkpoint = self.checkpoint()
+        check()
+        with self.store.transaction():
+            for columns in initial:
+                self.store.add_player(0, **columns)
+            self.state.rng = self.rng.bit_generator.state
+            self.store.record_checkpoint(0, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(self.state)))
 
     # ------------------------------------------------------------ snapshots, checkpoints
     @staticmethod

@@ -24,6 +24,7 @@ from envs.agents import AGENTS, Outcome
 from envs.config import GameConfig
 from envs.core import BatchedGame
 from envs.match import MatchResult, Player as AgentPlayer, play
+from envs.observations import policy_input
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import ScriptedPlayer
 from league.players import Player
@@ -51,18 +52,15 @@ class LearnedAgent:
 
     @torch.no_grad()
     def act(self, game: BatchedGame) -> np.ndarray:
-        obs = np.concatenate((game.observations()[self.index], game.global_state()), axis=1)
+        obs = policy_input(game.observations()[self.index], game.global_state())
         return self.module.deterministic_action(torch.from_numpy(obs)).numpy().astype(np.float64)
 
 
 def load_module(path: str | Path) -> torch.nn.Module:
-    from ray.rllib.core.rl_module.rl_module import RLModule
+    """A saved player's RLModule, in eval mode (``league.rllib_bridge.load_module``)."""
+    from league import rllib_bridge
 
-    if not Path(path, "module_state.pkl").exists():
-        raise FileNotFoundError(f"no saved module at {path} (module_state.pkl missing)")
-    module = RLModule.from_checkpoint(str(Path(path).resolve()))
-    module.eval()
-    return module
+    return rllib_bridge.load_module(path)
 
 
 def agents_of(player: Player, run_dir: Path, load=None) -> dict[str, AgentPlayer]:

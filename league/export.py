@@ -30,6 +30,7 @@ from typing import Any
 import torch
 from torch import nn
 
+from envs.observations import split_policy_input
 from envs.single import action_space, observation_space
 from league.players import Player
 from league.run_dir import RunDirError, open_run
@@ -52,7 +53,7 @@ class ExportedPolicy(nn.Module):
         self.observation_size = observation_size
 
     def forward(self, observation: torch.Tensor) -> torch.Tensor:
-        return self.actor(observation[:, : self.observation_size])
+        return self.actor(split_policy_input(observation, self.observation_size)[0])
 
 
 def resolve_player(store: LeagueStore, spec: str) -> Player:

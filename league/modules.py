@@ -23,7 +23,7 @@ import torch
 from torch import nn
 
 from envs.config import GameConfig
-from envs.observations import ROLE_SIZE
+from envs.observations import ROLE_SIZE, role_of, split_policy_input
 from envs.scripted import act_from_state
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
@@ -79,13 +79,11 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         self.vf = mlp(critic_inputs, hidden, 1, last_gain=1.0)
 
     def actor_features(self, obs: torch.Tensor) -> torch.Tensor:
-        return obs[..., : self.actor_inputs]
+        return split_policy_input(obs, self.actor_inputs)[0]
 
     def critic_features(self, obs: torch.Tensor) -> torch.Tensor:
-        if self.critic_input == "local":
-            return obs[..., : self.actor_inputs]
-        # The global state, then the role one-hot that ends the own observation of T and D.
-        return torch.cat((obs[..., self.actor_inputs :], obs[..., self.actor_inputs - ROLE_SIZE : self.actor_inputs]), dim=-1)
+        own, state = split_policy_input(obs, self.actor_inputs)
+        return torch.cat((state, role_of(own)), dim=-1) if self.critic_input == "global" else own
 
     def deterministic_action(self, obs: torch.Tensor) -> torch.Tensor:
         """The Gaussian's mean: what the policy does when not exploring."""
@@ -111,7 +109,7 @@ class ScriptedModule(TorchRLModule):
 
     def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
         obs = batch[Columns.OBS]
-        states = obs[..., self.actor_inputs :].detach().cpu().numpy()
+        states = split_policy_input(obs, self.actor_inputs)[1].detach().cpu().numpy()
         actions = act_from_state(self.game_config, self.agent, self.name, states)
         return {Columns.ACTIONS: torch.as_tensor(actions, dtype=torch.float32)}
 

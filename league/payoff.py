@@ -1,4 +1,8 @@
-"""Win rates and ratings from match results (rows of ``league.store``).
+"""Who wins, win rates and ratings from match results (rows of ``league.store``).
+
+The one home of "who won": ``ATTACKER_WINS`` (the outcome labels the attacker wins, from
+``envs.agents.Outcome.attacker_wins``) and the flip to one side's point of view
+(``wins_of``, ``record_against``); every other module asks these.
 
 A pair never played counts as an even match (win rate 0.5), as in AlphaStar.
 Ratings are Elo-scaled Bradley-Terry strengths fitted to all results so far:
@@ -28,6 +32,39 @@ def win_rate(wins: int, games: int) -> float:
     return wins / games if games else UNPLAYED_WIN_RATE
 
 
+def attacker_won(outcome: str) -> bool:
+    """Whether the attacker won a game that ended with the ``Outcome`` label ``outcome``."""
+    return outcome in ATTACKER_WINS
+
+
+def wins_of(side: str, attacker_wins, games):
+    """Wins of ``side`` among ``games`` of which the attacker won ``attacker_wins``.
+
+    Counts or numpy arrays of counts (``games`` 1 and 0/1 wins for single games).
+    """
+    return attacker_wins if side == "attacker" else games - attacker_wins
+
+
+def pair_key(side: str, player: int, opponent: int) -> tuple[int, int]:
+    """The ``(attacker, team)`` key of a game between ``player`` (on ``side``) and ``opponent``."""
+    return (player, opponent) if side == "attacker" else (opponent, player)
+
+
+def record_against(table: dict[tuple[int, int], tuple[int, int]], side: str, player: int, opponent: int) -> tuple[int, int]:
+    """``(wins, games)`` of ``player`` (on ``side``) against ``opponent`` in an ``aggregate`` table."""
+    attacker_wins, games = table.get(pair_key(side, player, opponent), (0, 0))
+    return wins_of(side, attacker_wins, games), games
+
+
+def player_record(table: dict[tuple[int, int], tuple[int, int]], side: str, player: int) -> tuple[int, int]:
+    """``(wins, games)`` of ``player`` (on ``side``) against everyone in an ``aggregate`` table."""
+    wins = games = 0
+    for (attacker, team), (attacker_wins, n) in table.items():
+        if player == (attacker if side == "attacker" else team):
+            wins, games = wins + wins_of(side, attacker_wins, n), games + n
+    return wins, games
+
+
 def elo_ratings(results: list[tuple[int, int, int, int]], players: list[int], iterations: int = 200) -> dict[int, float]:
     """Ratings from ``(attacker_id, team_id, attacker_wins, games)`` rows, of the ``players`` that played."""
     played = {p for a, t, _, n in results if n > 0 for p in (a, t)}
@@ -55,7 +92,9 @@ def elo_ratings(results: list[tuple[int, int, int, int]], players: list[int], it
     return {p: float(MEAN_RATING + ELO_SCALE * strength[index[p]]) for p in players}
 
 
-def aggregate(rows: list[tuple[int, int, str, int]], attacker_wins: set[str]) -> dict[tuple[int, int], tuple[int, int]]:
+def aggregate(
+    rows: list[tuple[int, int, str, int]], attacker_wins: frozenset[str] = ATTACKER_WINS
+) -> dict[tuple[int, int], tuple[int, int]]:
     """``{(attacker, team): (attacker wins, games)}`` from ``(attacker, team, outcome, count)`` rows."""
     table: dict[tuple[int, int], list[int]] = defaultdict(lambda: [0, 0])
     for attacker, team, outcome, count in rows:
@@ -68,5 +107,5 @@ def aggregate(rows: list[tuple[int, int, str, int]], attacker_wins: set[str]) ->
 
 def league_ratings(match_rows: list[tuple[int, int, str, int]], players: list[int]) -> dict[int, float]:
     """Ratings from ``(attacker, team, outcome, count)`` rows (``LeagueStore.match_rows``)."""
-    table = aggregate(match_rows, ATTACKER_WINS)
+    table = aggregate(match_rows)
     return elo_ratings([(a, t, w, n) for (a, t), (w, n) in table.items()], players)

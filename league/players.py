@@ -15,6 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from envs.scripted import PAPER_TEAM
+
 Side = Literal["attacker", "team"]
 Kind = Literal["learner", "snapshot", "scripted"]
 
@@ -51,6 +53,13 @@ class Player:
             return f"scripted-{self.scripted_targeter}+{self.scripted_defender}"
         base = f"attacker-m{self.reward_method}" if self.side == "attacker" else "team"
         return base if self.kind == "learner" else f"{base}-v{self.version}"
+
+    @property
+    def is_paper_team(self) -> bool:
+        """The scripted team the paper trains its attackers against (``envs.scripted.PAPER_TEAM``)."""
+        return self.kind == "scripted" and self.side == "team" and {
+            "targeter": self.scripted_targeter, "defender": self.scripted_defender
+        } == PAPER_TEAM
 
     def modules(self) -> dict[str, str]:
         """Module id per agent for the agents of this player's side."""

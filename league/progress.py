@@ -23,7 +23,7 @@ from rich.console import Console
 from tensorboardX import SummaryWriter
 
 if TYPE_CHECKING:
-    from league.coordinator import Coordinator, PhaseState
+    from league.schedule import PhaseState
     from league.evaluation import PairResult
 
 TRAIN_METRICS = ("policy_loss", "vf_loss", "entropy", "mean_kl_loss")
@@ -56,8 +56,10 @@ class ProgressReporter:
 
     def iteration(
         self,
-        coordinator: "Coordinator",
-        result: dict[str, Any],
+        iteration: int,
+        env_steps: int,
+        league_size: int,
+        learner_stats: dict[str, dict[str, Any]],
         weights: dict[str, dict[str, float]],
         phase: "PhaseState",
         steps: int,
@@ -65,24 +67,26 @@ class ProgressReporter:
         snapshots: list[str],
         evaluation: list["PairResult"],
     ) -> None:
-        """Report iteration ``coordinator.state.iteration``, trained in ``phase`` (as it stood after it)."""
-        st = coordinator.state
-        league_size = len(coordinator.store.players())
+        """Report ``iteration`` (``env_steps`` in all so far), trained in ``phase`` (as it stood after it).
+
+        ``learner_stats``: the Learner's results per learner module
+        (``league.rllib_bridge.learner_stats``); ``steps``: the env steps of this iteration.
+        """
         phase_rate = phase.learner_wins / phase.episodes if phase.episodes else float("nan")
         side = phase.side
         train_seconds = timing.sampling + timing.learning
         steps_per_second = steps / train_seconds if train_seconds > 0 else float("nan")
         evaluated = f", eval {timing.evaluation:.1f} s" if evaluation or timing.evaluation >= 0.05 else ""  # or curves
         self.message(
-            f"phase {phase.index + 1}/{self.total_phases} {side:8s} | iter {st.iteration:4d} | "
-            f"{st.env_steps:8d} env steps | {steps_per_second:6.0f} steps/s | "
+            f"phase {phase.index + 1}/{self.total_phases} {side:8s} | iter {iteration:4d} | "
+            f"{env_steps:8d} env steps | {steps_per_second:6.0f} steps/s | "
             f"sample {timing.sampling:.1f} s, learn {timing.learning:.1f} s{evaluated} | "
             f"{side} win rate {phase_rate:.2f} over {phase.episodes} ep | league {league_size}"
             + (f" | snapshot {', '.join(snapshots)}" if snapshots else "")
         )
-        i = st.iteration
+        i = iteration
         self.scalar("perf/sps", steps_per_second, i)
-        self.scalar("perf/env_steps", st.env_steps, i)
+        self.scalar("perf/env_steps", env_steps, i)
         self.scalar("perf/sampling_seconds", timing.sampling, i)
         self.scalar("perf/learning_seconds", timing.learning, i)
         if evaluation:
@@ -93,11 +97,9 @@ class ProgressReporter:
         for learner, opponents in weights.items():
             for opponent, p in opponents.items():
                 self.scalar(f"league/pfsp/{learner}/{opponent}", p, i)
-        learner_names = {p.name for p in coordinator.store.players(kind="learner")}
-        for module, stats in result.get("learners", {}).items():
-            if module in learner_names:
-                for key in TRAIN_METRICS:
-                    self.scalar(f"train/{module}/{key}", stats.get(key), i)
+        for module, stats in learner_stats.items():
+            for key in TRAIN_METRICS:
+                self.scalar(f"train/{module}/{key}", stats.get(key), i)
         self.evaluation(evaluation, i)
         self.writer.flush()
 

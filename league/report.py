@@ -37,14 +37,13 @@ from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.curves import plot_run
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
-from league.payoff import ATTACKER_WINS, aggregate, league_ratings
+from league.payoff import aggregate, attacker_won, league_ratings, wins_of
 from league.players import Player
 from league.run_dir import RunDirError, open_run
 from league.store import LeagueStore
 
 # The paper's Table 1: A's winning percentage over 100 test rounds per method.
 PAPER_TABLE_1 = {1: 0.48, 2: 0.6253, 3: 0.5763}
-PAPER_TEAM = ("avoid_attacker", "pure_pursuit")
 TRAJECTORY_GAMES = 200
 SIDE_COLOURS = {"attacker": "#d62728", "team": "#1f77b4"}  # phase shading and the sides' panels
 DPI = 110
@@ -92,7 +91,7 @@ class ReportData:
 # ---------------------------------------------------------------- data
 def evaluation_payoff(store: LeagueStore, run: RunConfig, run_dir: Path, needed: list[tuple[Player, Player]]):
     """``{(attacker id, team id): (attacker wins, games)}`` of each pair's newest evaluation, filling gaps."""
-    table = aggregate(store.newest_evaluation_rows(), ATTACKER_WINS)
+    table = aggregate(store.newest_evaluation_rows())
     missing = [(a, t) for a, t in needed if (a.id, t.id) not in table]
     for r in evaluate_pairs(run.game, run_dir, missing, run.evaluation.episodes):
         table[(r.attacker.id, r.team.id)] = (r.attacker_wins, r.games)
@@ -102,7 +101,7 @@ def evaluation_payoff(store: LeagueStore, run: RunConfig, run_dir: Path, needed:
 def player_games(store: LeagueStore, payoff: dict[tuple[int, int], tuple[int, int]]) -> dict[int, int]:
     """Games per player: training episodes plus the newest evaluation of each pair (gaps filled now)."""
     games: dict[int, int] = defaultdict(int)
-    for table in (aggregate(store.match_rows("training"), ATTACKER_WINS), payoff):
+    for table in (aggregate(store.match_rows("training")), payoff):
         for (attacker, team), (_, n) in table.items():
             games[attacker] += n
             games[team] += n
@@ -114,11 +113,11 @@ def learner_win_rates(store: LeagueStore, players: list[Player]) -> Series:
     learners = {p.id: p for p in players if p.kind == "learner"}
     counts: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0])
     for iteration, attacker, team, outcome, n in store.training_rows_by_iteration():
-        for pid, attacker_side in ((attacker, True), (team, False)):
+        for pid in (attacker, team):
             if pid in learners:
                 entry = counts[(learners[pid].name, iteration)]
                 entry[1] += n
-                entry[0] += n if (outcome in ATTACKER_WINS) == attacker_side else 0
+                entry[0] += wins_of(learners[pid].side, n if attacker_won(outcome) else 0, n)
     series: Series = defaultdict(lambda: ([], []))
     for (name, iteration), (wins, games) in sorted(counts.items(), key=lambda kv: kv[0][1]):
         series[name][0].append(iteration)
@@ -152,7 +151,7 @@ def record_episodes(run: RunConfig, run_dir: Path, attacker: Player, team: Playe
     players = {**agents_of(attacker, run_dir), **agents_of(team, run_dir)}
     result = play(run.game, players, evaluation_scenarios(run.game.scenario, TRAJECTORY_GAMES), record=True)
     paths = np.stack(result.trajectory)  # (steps + 1, games, 3, 3)
-    side_won = result.attacker_wins if side == "attacker" else ~result.attacker_wins
+    side_won = wins_of(side, result.attacker_wins.astype(int), 1) == 1
     learned = attacker if side == "attacker" else team
     episodes, missing = [], []
     for label, mask in (("won", side_won), ("lost", ~side_won)):
@@ -189,7 +188,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
 
     # Each side's newest snapshot against a scripted opponent (the paper's team when there is one).
     scripted_teams = [t for t in teams if t.kind == "scripted"]
-    paper_team = next((t for t in scripted_teams if (t.scripted_targeter, t.scripted_defender) == PAPER_TEAM),
+    paper_team = next((t for t in scripted_teams if t.is_paper_team),
                       scripted_teams[0] if scripted_teams else None)
     scripted_attacker = next((a for a in attackers if a.kind == "scripted"), None)
     newest_attacker = next((a for a in reversed(attackers) if a.kind == "snapshot"), None)
@@ -222,7 +221,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
 # ---------------------------------------------------------------- tables
 def table_one_rows(data: ReportData) -> list[list[str]]:
     """The newest attacker snapshot of each reward method against the paper's scripted team."""
-    team = next((p for p in data.teams if p.kind == "scripted" and (p.scripted_targeter, p.scripted_defender) == PAPER_TEAM), None)
+    team = next((p for p in data.teams if p.is_paper_team), None)
     latest = {p.reward_method: p for p in data.attackers if p.kind == "snapshot"}
     rows = []
     for method, attacker in sorted(latest.items()):

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import shutil
-import sqlite3
 import subprocess
 import sys
 import time
@@ -41,11 +40,11 @@ from pathlib import Path
 
 import numpy as np
 
-from envs.agents import Outcome
+from league.payoff import aggregate
 from league.report import PAPER_TABLE_1
 from league.run_dir import RunDirError, lock_run
+from league.store import LeagueStore
 
-ATTACKER_WINS = tuple(o.label for o in Outcome if o.attacker_wins)
 BOOTSTRAP_SAMPLES = 10_000
 
 
@@ -59,22 +58,16 @@ def bootstrap_interval(values: list[float], seed: int = 0) -> tuple[float, float
 
 def attacker_win_rate(run_dir: Path, method: int) -> tuple[float, int]:
     """Evaluation win rate of ``attacker-m{method}-v1`` against the paper's scripted team."""
-    db = sqlite3.connect(run_dir / "league.db")
-    attacker = db.execute(
-        "SELECT id FROM players WHERE side = 'attacker' AND kind = 'snapshot' AND reward_method = ? AND version = 1",
-        (method,),
-    ).fetchone()[0]
-    team = db.execute(
-        "SELECT id FROM players WHERE kind = 'scripted' AND scripted_targeter = 'avoid_attacker' "
-        "AND scripted_defender = 'pure_pursuit'"
-    ).fetchone()[0]
-    rows = db.execute(
-        "SELECT outcome, SUM(count) FROM matches WHERE source = 'evaluation' AND attacker = ? AND team = ? "
-        "AND iteration = (SELECT MAX(iteration) FROM matches WHERE source = 'evaluation') GROUP BY outcome",
-        (attacker, team),
-    ).fetchall()
-    games = sum(n for _, n in rows)
-    return sum(n for o, n in rows if o in ATTACKER_WINS) / games, games
+    store = LeagueStore(run_dir)
+    try:
+        attacker = next(
+            p for p in store.players(side="attacker", kind="snapshot") if p.reward_method == method and p.version == 1
+        )
+        team = next(p for p in store.players(side="team", kind="scripted") if p.is_paper_team)
+        wins, games = aggregate(store.newest_evaluation_rows())[(attacker.id, team.id)]
+    finally:
+        store.close()
+    return wins / games, games
 
 
 @dataclass(frozen=True)

@@ -1,13 +1,15 @@
 """Where the league meets RLlib: algorithm config, modules, mapping, results, checkpoints.
 
 (Besides this module, RLlib is imported by the fast sampler, ``league.batched_env_runner``,
-and the RLModules, ``league.modules``.)
+the RLModules, ``league.modules``, and ``league.rllib_compat``, the one module that
+touches RLlib's private attributes and episode internals. Checkpoints are loaded and
+``train()`` results read only here.)
 
 * ``MatchPlan`` is the agent-to-module mapping. It decides each episode's opponent
   once, from the episode id and a seed (the same match whoever asks, whenever), by the PFSP
   probabilities the coordinator computed; it is a picklable object sent to every
   EnvRunner.
-* ``MatchRecorder`` logs, per finished episode, which modules played and the outcome;
+* ``OutcomeRecorder`` logs, per finished episode, which modules played and the outcome;
   the counts reach the driver through RLlib's metrics (summed over the iteration).
 """
 
@@ -25,8 +27,11 @@ import numpy as np
 import torch
 
 from envs.agents import AGENTS
-from envs.rllib_env import TargetDefenseMultiAgentEnv
+from envs.observations import observation_size
+from envs.rllib_env import TargetDefenseMultiAgentEnv, policy_input_space
+from envs.single import action_space
 from league.batched_env_runner import MATCHES_KEY, SEPARATOR, BatchedEnvRunner, log_match
+from league import rllib_compat as compat
 from league.config import RunConfig
 from league.modules import ActorCriticModule, ScriptedModule
 from league.players import Player
@@ -50,6 +55,7 @@ from ray.rllib.utils.metrics import (
     LEARNER_UPDATE_TIMER,
     NUM_ENV_STEPS_SAMPLED,
     NUM_ENV_STEPS_SAMPLED_LIFETIME,
+    NUM_MODULE_STEPS_SAMPLED,
     NUM_MODULE_STEPS_TRAINED_LIFETIME,
     SYNCH_WORKER_WEIGHTS_TIMER,
     TIMERS,
@@ -61,24 +67,17 @@ def env_config(run: RunConfig) -> dict[str, Any]:
     return {**run.game.model_dump(), "with_global_state": True}
 
 
-def probe_env(run: RunConfig) -> TargetDefenseMultiAgentEnv:
-    return TargetDefenseMultiAgentEnv(env_config(run))
-
-
 def actor_inputs(run: RunConfig, agent: str) -> int:
     """Length of the agent's own observation (the global state follows it)."""
-    from envs.pettingzoo_env import TargetDefenseEnv
-
-    return TargetDefenseEnv(run.game).observation_space(agent).shape[0]
+    return observation_size(run.game, AGENTS.index(agent))
 
 
 def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) -> RLModuleSpec:
-    env = probe_env(run)
     agent = "attacker" if side == "attacker" else "targeter"
     return RLModuleSpec(
         module_class=ActorCriticModule,
-        observation_space=env.observation_spaces[agent],
-        action_space=env.action_spaces[agent],
+        observation_space=policy_input_space(run.game, agent),
+        action_space=action_space(run.game),
         model_config={
             "actor_inputs": actor_inputs(run, agent),
             "critic": "local" if side == "attacker" else "global",
@@ -89,11 +88,10 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
 
 
 def scripted_spec(run: RunConfig, agent: str, name: str) -> RLModuleSpec:
-    env = probe_env(run)
     return RLModuleSpec(
         module_class=ScriptedModule,
-        observation_space=env.observation_spaces[agent],
-        action_space=env.action_spaces[agent],
+        observation_space=policy_input_space(run.game, agent),
+        action_space=action_space(run.game),
         model_config={"agent": agent, "name": name, "game": run.game.model_dump(), "actor_inputs": actor_inputs(run, agent)},
     )
 
@@ -158,17 +156,11 @@ class AttackerRewardByMethod(ConnectorV2):
             if not method or real_steps <= 0:
                 continue
             infos = attacker.get_infos(slice(1, real_steps + 1))
-            rewards = [info["attacker_rewards"][method - 1] for info in infos]
-            buffer = attacker.rewards
-            if buffer.finalized:
-                # Written in place: `set_rewards` checks every value against a space (~0.1 ms per episode).
-                buffer.data[buffer.lookback : buffer.lookback + real_steps] = rewards
-            else:
-                attacker.set_rewards(new_data=np.array(rewards, dtype=np.float32), at_indices=slice(0, real_steps))
+            compat.overwrite_rewards(attacker, [info["attacker_rewards"][method - 1] for info in infos])
         return batch
 
 
-class MatchRecorder(RLlibCallback):
+class OutcomeRecorder(RLlibCallback):
     """Counts finished episodes by (attacker module, targeter module, defender module, outcome)."""
 
     def on_episode_end(self, *, episode, metrics_logger=None, **kwargs) -> None:
@@ -202,6 +194,18 @@ def env_runner_health(algo: Algorithm) -> tuple[int, int, int]:
 
 def sampled_env_steps(result: dict[str, Any]) -> int:
     return int(result.get(ENV_RUNNER_RESULTS, {}).get(NUM_ENV_STEPS_SAMPLED_LIFETIME, 0))
+
+
+def learner_env_steps(result: dict[str, Any], learners: list[Player]) -> dict[str, int]:
+    """Env steps of the games each learner played in this ``train()``, from the runners' exact
+    per-module counts: a module's agent steps over the agents it plays in a game (the team's
+    module plays T and D)."""
+    played = result.get(ENV_RUNNER_RESULTS, {}).get(NUM_MODULE_STEPS_SAMPLED, {})
+    steps = {}
+    for learner in learners:
+        count = played.get(learner.name, 0)
+        steps[learner.name] = int(count) // len(learner.modules()) if count == count else 0  # NaN: idle this time
+    return steps
 
 
 class LeaguePPO(PPO):
@@ -346,7 +350,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
         )
         .fault_tolerance(restart_failed_env_runners=True)
         .callbacks(
-            MatchRecorder,
+            OutcomeRecorder,
             on_environment_created=functools.partial(_runner_threads, res.threads_for(res.num_cpus_per_env_runner)),
         )
         .debugging(seed=run.seed, log_level="ERROR")
@@ -389,3 +393,26 @@ def save_module(algo: Algorithm, module_id: str, path: Path) -> None:
 
 def learner_weights(algo: Algorithm, module_id: str) -> dict[str, torch.Tensor]:
     return algo.learner_group.get_weights(module_ids=[module_id])[module_id]
+
+
+# ---------------------------------------------------------------- checkpoints and results
+def load_module(path: str | Path) -> torch.nn.Module:
+    """A module saved by ``save_module``, in eval mode."""
+    from ray.rllib.core.rl_module.rl_module import RLModule
+
+    if not Path(path, "module_state.pkl").exists():
+        raise FileNotFoundError(f"no saved module at {path} (module_state.pkl missing)")
+    module = RLModule.from_checkpoint(str(Path(path).resolve()))
+    module.eval()
+    return module
+
+
+def restore_algorithm(path: str | Path) -> Algorithm:
+    """The algorithm of a checkpoint, snapshot modules added at run time included."""
+    return Algorithm.from_checkpoint(str(path))
+
+
+def learner_stats(result: dict[str, Any], modules: list[str]) -> dict[str, dict[str, Any]]:
+    """The Learner's results (losses, entropy, KL, ...) of each of ``modules`` it trained in this ``train()``."""
+    learners = result.get(LEARNER_RESULTS, {})
+    return {m: dict(learners[m]) for m in modules if m in learners}

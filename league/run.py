@@ -27,14 +27,10 @@ if __name__ == "__main__":  # the imports below take seconds (torch, Ray); main(
         signal.signal(_signum, _stopped_while_importing)
 
 import argparse
-import json
 import logging
 import shutil
 import time
-from dataclasses import asdict
 from pathlib import Path
-
-import numpy as np
 
 import yaml
 
@@ -127,18 +123,8 @@ def new_run(run: RunConfig, run_dir: Path, stop: StopRequests) -> Coordinator:
         plan = bridge.MatchPlan([first_attacker.modules()], [[first_team.modules()]], [[1.0]], run.seed)
         algo = bridge.build_config(run, store.players(), plan).build_algo()
         stop.check()
-        coordinator = Coordinator(run, run_dir, store, algo, state)
-        coordinator.rng = np.random.default_rng(run.seed)
-        # The untrained policies join the league as version 0: the baseline every later
-        # snapshot is measured against.
-        initial = [coordinator.snapshot(learner) for learner in store.players(kind="learner")]
-        checkpoint = coordinator.checkpoint()
-        stop.check()
-        with store.transaction():
-            for columns in initial:
-                store.add_player(0, **columns)
-            state.rng = coordinator.rng.bit_generator.state
-            store.record_checkpoint(0, str(checkpoint.relative_to(run_dir)), json.dumps(asdict(state)))
+        coordinator = Coordinator(run, run_dir, store, algo, state, seed=run.seed)
+        coordinator.begin(check=stop.check)
         return coordinator
     except BaseException:
         if store is not None:
@@ -164,7 +150,7 @@ def intact_checkpoints(run_dir: Path, store: LeagueStore) -> tuple[list[tuple[in
 
 def resume_run(run_dir: Path, run: RunConfig, store: LeagueStore, say) -> Coordinator:
     """Restore the newest intact checkpoint; roll the database back to it."""
-    from ray.rllib.algorithms.algorithm import Algorithm
+    from league import rllib_bridge as bridge
 
     usable, problems = intact_checkpoints(run_dir, store)
     iteration, path = usable[0]
@@ -180,7 +166,7 @@ def resume_run(run_dir: Path, run: RunConfig, store: LeagueStore, say) -> Coordi
             f"the league database was rolled back from iteration {last_committed} to {iteration}"
         )
     _, _, state_json = store.last_checkpoint()
-    algo = Algorithm.from_checkpoint(str(run_dir / path))
+    algo = bridge.restore_algorithm(run_dir / path)
     return Coordinator(run, run_dir, store, algo, RunState.from_json(state_json))
 
 

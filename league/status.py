@@ -12,30 +12,22 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from envs.agents import Outcome
-from league.payoff import aggregate
+from league.payoff import aggregate, player_record
 from league.run_dir import RunDirError, open_run, usable_checkpoints
 from league.store import LeagueStore
-
-ATTACKER_WINS = {o.label for o in Outcome if o.attacker_wins}
 
 
 def league_table(store: LeagueStore, source: str | None = None) -> Table:
     """Players with rating, games and win rate over their games of ``source``, each game counted once."""
     ratings = store.latest_ratings()
-    payoff = aggregate(store.counted_results(source), ATTACKER_WINS)
+    payoff = aggregate(store.counted_results(source))
     table = Table(title="league", caption="rating: none for a player without games (nothing to fit)")
     for column in ("player", "side", "kind", "reward", "parent", "env steps", "rating", "games", "win rate"):
         table.add_column(column, justify="right" if column in ("env steps", "rating", "games", "win rate") else "left")
     players = store.players()
     names = {p.id: p.name for p in players}
     for player in sorted(players, key=lambda p: -ratings.get(p.id, 0.0)):
-        wins = games = 0
-        for (attacker, team), (attacker_wins, n) in payoff.items():
-            if player.id == attacker:
-                wins, games = wins + attacker_wins, games + n
-            elif player.id == team:
-                wins, games = wins + n - attacker_wins, games + n
+        wins, games = player_record(payoff, player.side, player.id)
         table.add_row(
             player.name,
             player.side,

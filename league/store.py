@@ -140,7 +140,10 @@ class LeagueStore:
         elif not path.exists():
             raise FileNotFoundError(f"no league database at {path}")
         self.path = path
-        self.db = sqlite3.connect(path, isolation_level=None, timeout=30.0)
+        try:
+            self.db = sqlite3.connect(path, isolation_level=None, timeout=30.0)
+        except sqlite3.DatabaseError as err:
+            raise DamagedStoreError(f"{path} cannot be opened ({err})") from err
         try:
             self.check()
             self.db.execute("PRAGMA foreign_keys=ON")
@@ -167,6 +170,10 @@ class LeagueStore:
         if missing:
             what = "empty" if not tables else "not a league database"
             raise DamagedStoreError(f"{self.path} is {what} (no table {', '.join(missing)})")
+
+    def integrity_check(self) -> str:
+        """SQLite's full ``PRAGMA integrity_check``: ``"ok"``, or the problems found, one per line."""
+        return "\n".join(row[0] for row in self.db.execute("PRAGMA integrity_check"))
 
     def close(self) -> None:
         self.db.close()

@@ -7,7 +7,7 @@ import pytest
 
 from envs.config import GameConfig
 from envs.core import BatchedGame
-from envs.kinematics import Arcs, heading_vectors, limit_turn, move, turn, turned
+from envs.kinematics import TURN_ANGLE_TOLERANCE, Arcs, heading_vectors, limit_turn, move, turn, turned
 
 V = np.array([0.18, 0.13, 0.18])
 L = 0.1
@@ -151,16 +151,23 @@ def test_arc_points_lie_on_one_circle_at_constant_speed():
     np.testing.assert_allclose(from_centre[:, turning], expected[:, turning], rtol=1e-9)
 
 
-@pytest.mark.parametrize("action_mode", ["relative", "absolute"])
-def test_both_action_modes_reach_the_same_heading(action_mode):
+def test_relative_actions_turn_by_fractions_of_the_limits_and_absolute_actions_reach_the_same_heading():
     relative, absolute = GameConfig(action_mode="relative"), GameConfig(action_mode="absolute")
-    start = np.array([[[0, 0, 0], [3, 0, 0], [1, 1, 0]]], dtype=float)
+    start = np.array([[[0, 0, 0], [3, 0, 0], [1, 1, 0]]], dtype=float)  # every heading yaw = pitch = 0
     games = {}
     for name, cfg in (("relative", relative), ("absolute", absolute)):
         games[name] = BatchedGame(cfg, 1)
         games[name].reset(positions=start)
     games["relative"].step(np.array([[[0.5, -0.5], [1.0, 1.0], [-0.2, 0.0]]]))
-    target = games["relative"].headings.copy()
-    games["absolute"].step(target)
+    reached = games["relative"].headings[0]
+    # A and D: the commanded fractions of the limits (yaw pi/2, pitch pi/4), within v / L; a few
+    # float operations from the action, so 1e-12.
+    np.testing.assert_allclose(reached[0], [math.pi / 4, -math.pi / 8], atol=1e-12)
+    np.testing.assert_allclose(reached[2], [2 * math.pi - 0.1 * math.pi, 0.0], atol=1e-12)
+    # T asked for (pi/2, pi/4), a turn of pi/2 > v_T / L = 1.3 rad: cut to 1.3 rad, yaw : pitch kept 2 : 1.
+    # abs: the cut is solved to TURN_ANGLE_TOLERANCE of the angle (envs.kinematics).
+    assert angle(heading_vectors(np.zeros(2)), heading_vectors(reached[1])) == pytest.approx(V[1] / L, abs=TURN_ANGLE_TOLERANCE)
+    assert reached[1, 0] == pytest.approx(2 * reached[1, 1], abs=1e-12)
+    games["absolute"].step(reached[None])
+    np.testing.assert_allclose(games["absolute"].headings, games["relative"].headings, atol=1e-12)
     np.testing.assert_allclose(games["absolute"].positions, games["relative"].positions, atol=1e-12)
-    np.testing.assert_allclose(games[action_mode].headings, target, atol=1e-12)

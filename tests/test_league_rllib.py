@@ -7,7 +7,7 @@ import ray
 
 from league.config import RunConfig
 from league.players import Player
-from league.rllib_bridge import MatchPlan, build_config, match_counts, set_match_plan, set_trainable
+from league.rllib_bridge import MatchPlan, build_config, learner_env_steps, match_counts, set_match_plan, set_trainable
 
 
 def trained(result, module):
@@ -46,6 +46,10 @@ def test_one_shared_team_policy_plays_and_learns_for_both_t_and_d(algo):
     agents = result["env_runners"]["num_agent_steps_sampled"]
     assert agents["targeter"] > 0 and agents["defender"] > 0
     assert sampled["team"] == agents["targeter"] + agents["defender"]
+    # the team played every game, the attacker learner none: their env steps, exactly
+    team, attacker = Player(id=2, side="team", kind="learner", version=0), Player(1, "attacker", "learner", 0, 2)
+    env_steps = result["env_runners"]["num_env_steps_sampled"]
+    assert learner_env_steps(result, [team, attacker]) == {"team": env_steps, "attacker-m2": 0}
     assert trained(result, "team") > 0 and trained(result, "attacker-m2") == 0
     modules = {m for m, _, _ in match_counts(result)}
     assert modules <= {("scripted-attacker-lead_intercept", "team", "team")} and modules

@@ -6,7 +6,9 @@ import torch
 
 from league.config import CONFIG_DIR, ConfigError, RunConfig, load_config
 from league.evaluation import wilson_interval
-from league.payoff import elo_ratings, win_rate
+from envs.agents import Outcome
+from league.payoff import ATTACKER_WINS, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
+from league.players import Player
 from league.pfsp import pfsp_probabilities
 from league.rllib_bridge import MatchPlan, learner_spec
 from league.run import main as run_main
@@ -134,6 +136,28 @@ def test_unplayed_pair_is_even_and_elo_orders_players():
     assert even[1] == pytest.approx(even[2])
 
 
+def test_who_wins_each_outcome_and_from_which_side():
+    assert ATTACKER_WINS == {"captured", "timeout"}
+    assert [attacker_won(o.label) for o in Outcome if o != Outcome.RUNNING] == [True, True, False, False]
+    # attacker 1 vs team 2: 3 captures, 1 timeout, 6 times T reached the terminal
+    rows = [(1, 2, "captured", 3), (1, 2, "timeout", 1), (1, 2, "terminal_reached", 6), (4, 2, "attacker_intercepted", 5)]
+    table = aggregate(rows)
+    assert table == {(1, 2): (4, 10), (4, 2): (0, 5)}
+    assert record_against(table, "attacker", 1, 2) == (4, 10)
+    assert record_against(table, "team", 2, 1) == (6, 10)
+    assert record_against(table, "team", 2, 3) == (0, 0)  # never played
+    assert player_record(table, "team", 2) == (11, 15)
+    assert player_record(table, "attacker", 4) == (0, 5)
+    assert wins_of("team", np.array([1, 0, 1]), 1).tolist() == [0, 1, 0]  # single games
+
+
+def test_the_paper_team_is_recognised_by_its_scripted_players():
+    paper = Player(1, "team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit")
+    other = Player(2, "team", "scripted", 0, scripted_targeter="straight", scripted_defender="pure_pursuit")
+    assert paper.is_paper_team and not other.is_paper_team
+    assert not Player(3, "team", "snapshot", 1).is_paper_team
+
+
 @pytest.mark.parametrize(
     "wins, games, low, high", [(0, 10, 0.0, 0.2775), (5, 10, 0.2366, 0.7634), (8, 10, 0.4902, 0.9433)]
 )
@@ -216,6 +240,23 @@ def test_rollback_forgets_later_iterations(tmp_path):
     assert store.iteration_count() == 1
     assert store.match_rows() == [(a.id, t.id, "captured", 2)]
     assert [p.kind for p in store.players()] == ["scripted", "learner"]
+
+
+def test_reproduce_reads_the_newest_evaluation_of_the_paper_team(tmp_path):
+    from league.reproduce import attacker_win_rate
+
+    store = LeagueStore(tmp_path, create=True)
+    with store.transaction():
+        straight = store.add_player(0, side="team", kind="scripted", version=0, scripted_targeter="straight",
+                                    scripted_defender="pure_pursuit")
+        paper = store.add_player(0, side="team", kind="scripted", version=0, scripted_targeter="avoid_attacker",
+                                 scripted_defender="pure_pursuit")
+        v1 = store.add_player(0, side="attacker", kind="snapshot", version=1, reward_method=2)
+    store.record_evaluation(1, [(v1.id, paper.id, "captured", 1), (v1.id, paper.id, "terminal_reached", 3)])
+    store.record_evaluation(2, [(v1.id, paper.id, "captured", 3), (v1.id, paper.id, "terminal_reached", 1)])
+    store.record_evaluation(2, [(v1.id, straight.id, "captured", 4)])
+    store.close()
+    assert attacker_win_rate(tmp_path, 2) == (0.75, 4)
 
 
 def test_bootstrap_interval_over_seeds():

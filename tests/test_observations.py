@@ -58,3 +58,24 @@ def test_time_left_counts_down_and_global_state_size():
     game.step(np.zeros((1, 3, 2)))
     assert game.observations()[0][0, 20] == pytest.approx(1 - 1 / game.time_limit[0])
     assert game.global_state().shape == (1, 22)
+
+
+@pytest.mark.parametrize("observation", ["paper", "rich"])
+def test_policy_input_is_own_observation_then_global_state(observation):
+    from envs.observations import policy_input, policy_input_size, split_policy_input
+    from envs.vector_env import TargetDefenseVectorEnv
+
+    config = GameConfig(observation=observation)
+    env = TargetDefenseVectorEnv({**config.model_dump(), "with_global_state": True}, 3)
+    inputs = env.reset(seed=5)
+    core = env.core
+    for index, agent in enumerate(AGENTS):
+        assert inputs[agent].shape == (3, policy_input_size(config, index))  # the size needs no env
+        own, state = split_policy_input(inputs[agent], inputs[agent].shape[1] - 22)
+        np.testing.assert_array_equal(own, core.observations()[index])
+        np.testing.assert_array_equal(state, core.global_state())
+        np.testing.assert_array_equal(policy_input(own, state), inputs[agent])
+    # the paper's 15 numbers, the rich 21; T and D add their role one-hot
+    assert [policy_input_size(config, i) - 22 for i in range(3)] == (
+        [15, 17, 17] if observation == "paper" else [21, 23, 23]
+    )

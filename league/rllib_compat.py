@@ -1,0 +1,81 @@
+"""Every reach into RLlib's internals, in one place, written for Ray ``RAY_VERSION``.
+
+RLlib's public API has no way to do what these functions do; each says what it reads or
+writes and why the league needs it. No other module touches a private RLlib attribute or
+writes an episode's internals (``tests/test_rllib_compat.py`` checks both, and pins the
+Ray version): on a Ray upgrade, read this module against the new RLlib source first.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
+from ray.rllib.env.single_agent_episode import SingleAgentEpisode
+from ray.rllib.env.utils.infinite_lookback_buffer import InfiniteLookbackBuffer
+
+RAY_VERSION = "2.60.0"
+
+
+# ---------------------------------------------------------------- AlgorithmConfig
+def has_custom_connectors(config: Any) -> bool:
+    """Whether the config sets env-to-module or module-to-env connectors of its own.
+
+    ``AlgorithmConfig`` keeps the user's connector factories in private fields only.
+    """
+    return config._env_to_module_connector is not None or config._module_to_env_connector is not None
+
+
+# ---------------------------------------------------------------- EnvRunner (for a subclass of MultiAgentEnvRunner)
+def weights_seq_no(env_runner: Any) -> int:
+    """The sequence number of the weights the runner holds (set by RLlib's weight sync)."""
+    return env_runner._weights_seq_no
+
+
+def env_runner_seed(env_runner: Any) -> int | None:
+    """The seed RLlib derived for this runner (the config's seed and the worker index)."""
+    return env_runner._seed
+
+
+def env_runner_callbacks(env_runner: Any) -> list[Any]:
+    """The runner's callback objects, as ``make_callback`` wants them."""
+    return env_runner._callbacks
+
+
+def count_sampled_env_steps(env_runner: Any, env_steps: int) -> None:
+    """Count ``env_steps`` in the runner's own sampled-steps counter, as RLlib's ``sample`` does."""
+    env_runner._log_env_steps(metric=env_runner._metrics_num_env_steps_sampled, num_steps=env_steps)
+
+
+# ---------------------------------------------------------------- episodes
+def lockstep_episode(
+    episode: MultiAgentEpisode, agent_episodes: dict[str, SingleAgentEpisode], env_t: int, length: int, terminated: bool
+) -> MultiAgentEpisode:
+    """``episode`` (new, empty, started at env step ``env_t``) holding ``agent_episodes``,
+    ``length`` steps in which every agent acted on every env step.
+
+    ``MultiAgentEpisode`` is built step by step through ``add_env_step``; a whole chunk of
+    numpy data is set here at once: the per-agent episodes, the env time, each agent's
+    env-to-agent time map (the identity) and the termination flag.
+    """
+    episode.agent_episodes = agent_episodes
+    episode.env_t = env_t + length
+    for agent in agent_episodes:
+        episode.agent_t_started[agent] = env_t
+        episode.env_t_to_agent_t[agent] = InfiniteLookbackBuffer(list(range(env_t, env_t + length + 1)))
+    episode.is_terminated = terminated  # the data went in as numpy arrays: no `to_numpy()` needed
+    return episode
+
+
+def overwrite_rewards(agent_episode: SingleAgentEpisode, rewards: list[float]) -> None:
+    """Replace the first ``len(rewards)`` rewards of an agent's episode.
+
+    A finalized (numpy) buffer is written in place: ``set_rewards`` checks every value
+    against a space, about 0.1 ms per episode.
+    """
+    buffer = agent_episode.rewards
+    if buffer.finalized:
+        buffer.data[buffer.lookback : buffer.lookback + len(rewards)] = rewards
+    else:
+        agent_episode.set_rewards(new_data=np.array(rewards, dtype=np.float32), at_indices=slice(0, len(rewards)))

@@ -1,0 +1,82 @@
+"""The league's schedule: which side learns in each phase, against whom, and when a phase ends.
+
+| schedule  | phases                         | a phase's opponents                               | a phase ends                     |
+| --------- | ------------------------------ | ------------------------------------------------- | -------------------------------- |
+| protocol  | ``league.phases``, in order    | the other side's scripted players, or its newest  | after the phase's ``episodes``   |
+|           |                                | snapshot (``opponents: latest``)                  | (or ``env_steps``)               |
+| self-play | ``selfplay_phases``, attacker  | every scripted player and snapshot of the other   | the learner won                  |
+|           | first, then in turn            | side                                              | ``snapshot_win_rate`` of at least|
+|           |                                |                                                   | ``min_phase_episodes``, or after |
+|           |                                |                                                   | ``phase_env_steps``              |
+
+``PhaseState`` is a phase's progress, kept by the coordinator in its resume state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from league.config import LeagueSettings, RunConfig
+from league.players import Player
+
+
+@dataclass
+class PhaseState:
+    index: int
+    side: str
+    start_iteration: int
+    episodes: int = 0
+    learner_wins: int = 0
+    env_steps: int = 0
+
+
+class ProtocolSchedule:
+    """The paper's protocol: the configured phases in order."""
+
+    def __init__(self, league: LeagueSettings):
+        self.league = league
+        self.phases = len(league.phases)
+
+    def side(self, index: int) -> str:
+        return self.league.phases[index].learner
+
+    def opponents(self, index: int, scripted: list[Player], snapshots: list[Player]) -> list[Player]:
+        spec = self.league.phases[index]
+        if spec.opponents == "latest":
+            if not snapshots:
+                raise RuntimeError(f"phase {spec} wants the latest snapshot of the other side, but there is none")
+            return [snapshots[-1]]
+        return scripted
+
+    def finished(self, phase: PhaseState) -> bool:
+        spec = self.league.phases[phase.index]
+        if spec.env_steps is not None:
+            return phase.env_steps >= spec.env_steps
+        return phase.episodes >= spec.episodes
+
+
+class SelfPlaySchedule:
+    """Attacker and team learn in turn, each against the other side's whole pool."""
+
+    def __init__(self, league: LeagueSettings):
+        self.league = league
+        self.phases = league.selfplay_phases
+
+    def side(self, index: int) -> str:
+        return "attacker" if index % 2 == 0 else "team"
+
+    def opponents(self, index: int, scripted: list[Player], snapshots: list[Player]) -> list[Player]:
+        return scripted + snapshots
+
+    def finished(self, phase: PhaseState) -> bool:
+        league = self.league
+        if phase.env_steps >= league.phase_env_steps:
+            return True
+        return phase.episodes >= league.min_phase_episodes and phase.learner_wins / phase.episodes >= league.snapshot_win_rate
+
+
+Schedule = ProtocolSchedule | SelfPlaySchedule
+
+
+def schedule_of(run: RunConfig) -> Schedule:
+    return ProtocolSchedule(run.league) if run.league.mode == "protocol" else SelfPlaySchedule(run.league)

@@ -1,0 +1,43 @@
+"""The league's schedules (``league.schedule``): who learns, against whom, when a phase ends."""
+
+import pytest
+
+from league.config import RunConfig
+from league.players import Player
+from league.schedule import PhaseState, ProtocolSchedule, SelfPlaySchedule, schedule_of
+
+SCRIPTED = [Player(5, "team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit")]
+SNAPSHOTS = [Player(6, "team", "snapshot", 0), Player(7, "team", "snapshot", 1)]
+
+
+def protocol() -> ProtocolSchedule:
+    run = RunConfig(name="p", league={"mode": "protocol", "phases": [
+        {"learner": "attacker", "episodes": 100}, {"learner": "team", "episodes": 50, "opponents": "latest"}]})
+    schedule = schedule_of(run)
+    assert isinstance(schedule, ProtocolSchedule)
+    return schedule
+
+
+def test_protocol_phases_in_order_against_scripted_players_then_the_newest_snapshot():
+    schedule = protocol()
+    assert schedule.phases == 2 and [schedule.side(i) for i in range(2)] == ["attacker", "team"]
+    assert schedule.opponents(0, SCRIPTED, SNAPSHOTS) == SCRIPTED
+    assert schedule.opponents(1, SCRIPTED, SNAPSHOTS) == [SNAPSHOTS[-1]]
+    with pytest.raises(RuntimeError, match="latest snapshot"):
+        schedule.opponents(1, SCRIPTED, [])
+    assert not schedule.finished(PhaseState(0, "attacker", 0, episodes=99, learner_wins=99))
+    assert schedule.finished(PhaseState(0, "attacker", 0, episodes=100))
+    assert schedule.finished(PhaseState(1, "team", 3, episodes=50))
+
+
+def test_selfplay_alternates_against_the_whole_pool_and_ends_on_wins_or_steps():
+    run = RunConfig(name="s", league={"selfplay_phases": 3, "snapshot_win_rate": 0.6, "min_phase_episodes": 200,
+                                      "phase_env_steps": 10_000})
+    schedule = schedule_of(run)
+    assert isinstance(schedule, SelfPlaySchedule)
+    assert schedule.phases == 3 and [schedule.side(i) for i in range(3)] == ["attacker", "team", "attacker"]
+    assert schedule.opponents(1, SCRIPTED, SNAPSHOTS) == SCRIPTED + SNAPSHOTS
+    assert not schedule.finished(PhaseState(0, "attacker", 0, episodes=199, learner_wins=199, env_steps=9_999))
+    assert schedule.finished(PhaseState(0, "attacker", 0, episodes=200, learner_wins=120))  # 0.6 of 200
+    assert not schedule.finished(PhaseState(0, "attacker", 0, episodes=200, learner_wins=119))
+    assert schedule.finished(PhaseState(0, "attacker", 0, episodes=10, learner_wins=0, env_steps=10_000))
