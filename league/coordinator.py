@@ -22,7 +22,7 @@ import numpy as np
 
 from league import rllib_bridge as bridge
 from league.config import RunConfig
-from league.curves import LearningCurves
+from league.curves import LearningCurves, Measurements
 from league.evaluation import EvaluationPool, PairResult, evaluate_pairs
 from league.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
 from league.pfsp import pfsp_probabilities
@@ -159,7 +159,7 @@ class Coordinator:
             self.next_phase()
         due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
         checkpoint = self.checkpoint() if due else None
-        self.commit(result, trained_phase, rows, snapshots, evaluation, checkpoint, steps, seconds)
+        self.commit(result, trained_phase, rows, snapshots, evaluation, curves, checkpoint, steps, seconds)
         self.prune_checkpoints()
         learner_names = [p.name for p in self.store.players(kind="learner")]
         progress.iteration(
@@ -187,8 +187,8 @@ class Coordinator:
         return rows, steps
 
     def commit(self, result: dict[str, Any], phase: PhaseState, rows: list[tuple[int, int, str, int]],
-               snapshots: list[dict[str, Any]], evaluation: list[PairResult], checkpoint: Path | None, steps: int,
-               seconds: float) -> None:
+               snapshots: list[dict[str, Any]], evaluation: list[PairResult], curves: Measurements, checkpoint: Path | None,
+               steps: int, seconds: float) -> None:
         """The iteration's one transaction: results, new snapshots, steps, ratings, the
         iteration's row (of ``phase``, the one it trained in) and, when one was written, its
         checkpoint with the run state."""
