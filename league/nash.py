@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linprog
 
+from league.payoff import ATTACKER_WINS, aggregate
 from league.players import Player
 
 # HiGHS's default primal and dual feasibility tolerances are 1e-7; a weight below ten
@@ -162,3 +163,16 @@ def format_meta_game(meta: MetaGame | None, why_not: str = "") -> str:
     lines = [meta.value_line(), "", "| " + " | ".join(MIXTURE_HEADER) + " |", "| " + " | ".join("---" for _ in MIXTURE_HEADER) + " |"]
     lines += ["| " + " | ".join(row) + " |" for row in meta.mixture_rows()]
     return "\n".join(lines + ["", META_GAME_NOTE]) + "\n"
+
+
+def league_meta_game(players: list[Player], evaluation_rows: list[tuple[int, int, str, int]]) -> tuple[MetaGame | None, str]:
+    """The meta-game on each pair's newest evaluation (``LeagueStore.newest_evaluation_rows``), or why there is none."""
+    attackers, teams = meta_game_players(players)
+    payoff = aggregate(evaluation_rows, ATTACKER_WINS)
+    missing = missing_pairs(attackers, teams, payoff)
+    if missing:
+        return None, (f"{len(missing)} of {len(attackers) * len(teams)} pairs of frozen players not evaluated yet "
+                      "(python -m league.evaluate plays them)")
+    if not attackers or not teams:
+        return None, "the league has no frozen attacker or no frozen team"
+    return meta_game(attackers, teams, payoff), ""

@@ -1,8 +1,8 @@
 """A run's report: ``python -m league.report --run-dir DIR`` writes ``DIR/report/``.
 
 * ``report.md`` with PNGs: the Table 1 analogue next to the paper's numbers, the payoff
-  matrix, ratings over training (one panel per side) and a table of every player's
-  rating, learner win rates and episode returns in the iterations their side learned
+  matrix and its meta-game (Nash mixtures and value, ``league.nash``), ratings over training (one panel per side) and a table of every player's
+  Elo and Nash-averaged rating, learner win rates and episode returns in the iterations their side learned
   (phases shaded; a line breaks between a learner's phases), and 3D trajectories of a won and a lost game
   for each side (the analogues of the paper's Fig. 3 and Fig. 4).
 * ``index.html``: the same content in one self-contained file (plotly's JavaScript
@@ -35,6 +35,7 @@ from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
+from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
 from league.payoff import ATTACKER_WINS, aggregate, league_ratings
 from league.players import Player
 from league.run_dir import RunDirError, open_run
@@ -85,6 +86,7 @@ class ReportData:
     episodes: list[Episode]
     missing_episodes: list[str]  # why a won or lost game of a side is not shown
     summary: str
+    meta: MetaGame | None = None  # the Nash equilibrium of the payoff matrix (None: a side has no frozen player)
 
 
 # ---------------------------------------------------------------- data
@@ -167,9 +169,7 @@ def record_episodes(run: RunConfig, run_dir: Path, attacker: Player, team: Playe
 
 def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
     players = store.players()
-    frozen = [p for p in players if p.kind != "learner"]
-    attackers = [p for p in frozen if p.side == "attacker"]
-    teams = [p for p in frozen if p.side == "team"]
+    attackers, teams = meta_game_players(players)  # snapshots and scripted players
     payoff = evaluation_payoff(store, run, run_dir, [(a, t) for a in attackers for t in teams])
 
     ratings: dict[int, tuple[list[int], list[float]]] = defaultdict(lambda: ([], []))
@@ -214,6 +214,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         win_rates=while_learning(learner_win_rates(store, players), learner_sides, learning_side),
         returns=while_learning(dict(returns), learner_sides, learning_side),
         phases=phases_of(iterations), episodes=episodes, missing_episodes=missing, summary=summary,
+        meta=meta_game(attackers, teams, payoff),
     )
 
 
@@ -233,17 +234,21 @@ def table_one_rows(data: ReportData) -> list[list[str]]:
 
 TABLE_ONE_HEADER = ["method", "attacker", "win rate vs the paper's scripted team", "95% interval", "games",
                     "paper (100 rounds)"]
-RATINGS_HEADER = ["player", "side", "kind", "rating", "games"]
+NO_META_GAME = "the league has no frozen attacker or no frozen team."
+RATINGS_HEADER = ["player", "side", "kind", "rating", "Nash-averaged rating", "games"]
 RATINGS_NOTE = ("Every player's rating, fitted to every game counted once: the training episodes and each pair's "
                 "newest evaluation (the same fixed games played again are one measurement). A player without "
-                "games has no rating.")
+                "games has no rating. Nash-averaged rating: the player's win rate against the other side's Nash "
+                "mixture (frozen league players only).")
 
 
 def rating_rows(data: ReportData) -> list[list[str]]:
     """Every player's rating fitted to every game counted once, best first; players without games have none."""
     newest = data.final_ratings
     by_rating = sorted(data.players, key=lambda p: (p.id not in newest, -newest.get(p.id, 0.0)))
-    return [[p.name, p.side, p.kind, f"{newest[p.id]:.0f}" if p.id in newest else "no games", str(data.games.get(p.id, 0))]
+    nash = data.meta.ratings() if data.meta else {}
+    return [[p.name, p.side, p.kind, f"{newest[p.id]:.0f}" if p.id in newest else "no games",
+             f"{nash[p.id]:.3f}" if p.id in nash else "", str(data.games.get(p.id, 0))]
             for p in by_rating]
 
 
@@ -387,6 +392,7 @@ def build_report(run_dir: Path) -> Path:
         "published, so compare the ordering, not the values.", "",
         markdown_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "## Payoff matrix", "", "![payoff](payoff.png)", "",
+        "## Meta-game", "", format_meta_game(data.meta, NO_META_GAME),
         "## Ratings", "", "![ratings](ratings.png)", "",
         RATINGS_NOTE, "",
         markdown_table(RATINGS_HEADER, rating_rows(data)),

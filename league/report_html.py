@@ -17,7 +17,9 @@ from plotly.offline import get_plotlyjs
 
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.render import COLOURS
+from league.nash import META_GAME_NOTE, MIXTURE_HEADER
 from league.report import (
+    NO_META_GAME,
     RATINGS_HEADER,
     RATINGS_NOTE,
     SIDE_COLOURS,
@@ -189,6 +191,13 @@ def trajectory_figure(episode: Episode, game: "GameConfig") -> go.Figure:
     return fig
 
 
+def meta_game_html(data: "ReportData") -> list[str]:
+    if data.meta is None:
+        return [f"<p>No meta-game: {html.escape(NO_META_GAME)}</p>"]
+    return [f"<p>{html.escape(data.meta.value_line())}</p>", html_table(MIXTURE_HEADER, data.meta.mixture_rows()),
+            f"<p class='note'>{html.escape(META_GAME_NOTE)}</p>"]
+
+
 def write(data: "ReportData", out: Path) -> None:
     """Write the page to ``out`` (through a temporary file: never a half-written report)."""
     parts = [
@@ -199,6 +208,7 @@ def write(data: "ReportData", out: Path) -> None:
         "ordering, not the values.</p>",
         html_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "<h2>Payoff matrix</h2>", figure_div(payoff_figure(data), "payoff"),
+        "<h2>Meta-game</h2>", *meta_game_html(data),
         "<h2>Ratings</h2>", figure_div(ratings_figure(data), "ratings"), f"<p>{html.escape(RATINGS_NOTE)}</p>", html_table(RATINGS_HEADER, rating_rows(data)),
         "<h2>Learner win rates in training</h2>",
         figure_div(line_figure(data.win_rates, data.phases, "win rate in training", "learner win rates (per iteration)"),

@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from envs.agents import Outcome
+from league.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_game
 from league.payoff import aggregate
 from league.run_dir import RunDirError, open_run, usable_checkpoints
 from league.store import LeagueStore
@@ -50,6 +51,19 @@ def league_table(store: LeagueStore, source: str | None = None) -> Table:
     return table
 
 
+def nash_section(store: LeagueStore) -> list:
+    """The meta-game's value and the players with nonzero Nash weight (or why there is no meta-game)."""
+    meta, why_not = league_meta_game(store.players(), store.newest_evaluation_rows())
+    if meta is None:
+        return [f"no meta-game: {why_not}"]
+    table = Table(title="Nash mixtures", caption=META_GAME_NOTE)
+    for column in MIXTURE_HEADER:
+        table.add_column(column, justify="left" if column in ("side", "player") else "right")
+    for row in meta.mixture_rows():
+        table.add_row(*row)
+    return [meta.value_line(), table]
+
+
 def run_line(store: LeagueStore) -> str:
     """Where the run stands: finished or at which phase, and its average speed so far."""
     last = store.last_iteration()
@@ -84,6 +98,8 @@ def main(argv: list[str] | None = None) -> int:
     for problem in problems:
         console.print(f"warning: {problem}; a resume falls back to the newest intact checkpoint")
     console.print(league_table(store, args.source))
+    for part in nash_section(store):
+        console.print(part)
     store.close()
     return 0
 
