@@ -1,7 +1,8 @@
 """A run's report: ``python -m league.report --run-dir DIR`` writes ``DIR/report/``.
 
 * ``report.md`` with PNGs: the Table 1 analogue next to the paper's numbers, the payoff
-  matrix and its meta-game (Nash mixtures and value, ``league.nash``), ratings over training (one panel per side) and a table of every player's
+  matrix and its meta-game (Nash mixtures and value, ``league.nash``), the exploitability of
+  the players ``league.exploit`` trained best responses against, ratings over training (one panel per side) and a table of every player's
   Elo and Nash-averaged rating, learner win rates and episode returns in the iterations their side learned
   (phases shaded; a line breaks between a learner's phases), and 3D trajectories of a won and a lost game
   for each side (the analogues of the paper's Fig. 3 and Fig. 4).
@@ -20,7 +21,7 @@ import argparse
 import json
 import sys
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
@@ -35,6 +36,7 @@ from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
+from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability
 from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
 from league.payoff import ATTACKER_WINS, aggregate, league_ratings
 from league.players import Player
@@ -87,6 +89,7 @@ class ReportData:
     missing_episodes: list[str]  # why a won or lost game of a side is not shown
     summary: str
     meta: MetaGame | None = None  # the Nash equilibrium of the payoff matrix (None: a side has no frozen player)
+    exploitability: list[Exploitability] = field(default_factory=list)  # best responses of league.exploit
 
 
 # ---------------------------------------------------------------- data
@@ -215,6 +218,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         returns=while_learning(dict(returns), learner_sides, learning_side),
         phases=phases_of(iterations), episodes=episodes, missing_episodes=missing, summary=summary,
         meta=meta_game(attackers, teams, payoff),
+        exploitability=exploitability(players, store.newest_evaluation_rows()),
     )
 
 
@@ -250,6 +254,15 @@ def rating_rows(data: ReportData) -> list[list[str]]:
     return [[p.name, p.side, p.kind, f"{newest[p.id]:.0f}" if p.id in newest else "no games",
              f"{nash[p.id]:.3f}" if p.id in nash else "", str(data.games.get(p.id, 0))]
             for p in by_rating]
+
+
+NO_EXPLOITABILITY = "No best responses yet: python -m league.exploit --run-dir DIR --player NAME trains them."
+
+
+def exploitability_markdown(data: ReportData) -> str:
+    if not data.exploitability:
+        return NO_EXPLOITABILITY + "\n"
+    return EXPLOITABILITY_NOTE + "\n\n" + markdown_table(EXPLOITABILITY_HEADER, [e.row() for e in data.exploitability])
 
 
 def markdown_table(header: list[str], rows: list[list[str]]) -> str:
@@ -393,6 +406,7 @@ def build_report(run_dir: Path) -> Path:
         markdown_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "## Payoff matrix", "", "![payoff](payoff.png)", "",
         "## Meta-game", "", format_meta_game(data.meta, NO_META_GAME),
+        "## Exploitability", "", exploitability_markdown(data),
         "## Ratings", "", "![ratings](ratings.png)", "",
         RATINGS_NOTE, "",
         markdown_table(RATINGS_HEADER, rating_rows(data)),

@@ -389,3 +389,15 @@ def save_module(algo: Algorithm, module_id: str, path: Path) -> None:
 
 def learner_weights(algo: Algorithm, module_id: str) -> dict[str, torch.Tensor]:
     return algo.learner_group.get_weights(module_ids=[module_id])[module_id]
+
+
+def load_frozen_module(algo: Algorithm, module_id: str, path: Path) -> None:
+    """Set the weights of ``module_id`` (already in the algorithm) to the module saved at ``path``
+    (``save_module``), in the learners and every EnvRunner: a frozen player of another run."""
+    from league.evaluation import load_module
+
+    weights = load_module(path).get_state()
+    algo.learner_group.set_weights({module_id: weights})
+    algo.env_runner_group.foreach_env_runner(  # set directly, as in ``add_snapshot``
+        lambda runner: runner.module[module_id].set_state(weights), local_env_runner=True
+    )

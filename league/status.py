@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from envs.agents import Outcome
+from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability
 from league.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_game
 from league.payoff import aggregate
 from league.run_dir import RunDirError, open_run, usable_checkpoints
@@ -64,6 +65,19 @@ def nash_section(store: LeagueStore) -> list:
     return [meta.value_line(), table]
 
 
+def exploitability_section(store: LeagueStore) -> list:
+    """Each exploited player's best responses (``league.exploit``): their win rates, mean and interval over seeds."""
+    found = exploitability(store.players(), store.newest_evaluation_rows())
+    if not found:
+        return []
+    table = Table(title="exploitability (best responses)", caption=EXPLOITABILITY_NOTE)
+    for column in EXPLOITABILITY_HEADER:
+        table.add_column(column, justify="left" if column == "player" else "right")
+    for item in found:
+        table.add_row(*item.row())
+    return [table]
+
+
 def run_line(store: LeagueStore) -> str:
     """Where the run stands: finished or at which phase, and its average speed so far."""
     last = store.last_iteration()
@@ -98,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     for problem in problems:
         console.print(f"warning: {problem}; a resume falls back to the newest intact checkpoint")
     console.print(league_table(store, args.source))
-    for part in nash_section(store):
+    for part in nash_section(store) + exploitability_section(store):
         console.print(part)
     store.close()
     return 0
