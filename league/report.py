@@ -1,7 +1,8 @@
 """A run's report: ``python -m league.report --run-dir DIR`` writes ``DIR/report/``.
 
 * ``report.md`` with PNGs: the Table 1 analogue next to the paper's numbers, the payoff
-  matrix and its meta-game (Nash mixtures and value, ``league.nash``), the exploitability of
+  matrix and its meta-game (Nash mixtures and value, ``league.nash``), every snapshot against
+  the scripted players of the other side by version (``league.generations``), the exploitability of
   the players ``league.exploit`` trained best responses against, ratings over training (one panel per side) and a table of every player's
   Elo and Nash-averaged rating, learner win rates and episode returns in the iterations their side learned
   (phases shaded; a line breaks between a learner's phases), and 3D trajectories of a won and a lost game
@@ -37,6 +38,7 @@ from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability
+from league.generations import GenerationLine, generation_lines, generations_plot
 from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
 from league.payoff import ATTACKER_WINS, aggregate, league_ratings
 from league.players import Player
@@ -90,6 +92,8 @@ class ReportData:
     summary: str
     meta: MetaGame | None = None  # the Nash equilibrium of the payoff matrix (None: a side has no frozen player)
     exploitability: list[Exploitability] = field(default_factory=list)  # best responses of league.exploit
+    generations: list[GenerationLine] = field(default_factory=list)  # snapshots against the scripted panel
+    missing_generations: list[str] = field(default_factory=list)  # points of those lines not evaluated
 
 
 # ---------------------------------------------------------------- data
@@ -210,6 +214,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         f"training episodes, {store.training_seconds():.0f} s of training iterations; {len(players)} players. "
         f"Evaluation: {run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair."
     )
+    generations, missing_generations = generation_lines(players, payoff)
     return ReportData(
         run=run, players=players, attackers=attackers, teams=teams, payoff=payoff, ratings=dict(ratings),
         final_ratings=league_ratings(store.counted_results(), [p.id for p in players]),
@@ -219,6 +224,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         phases=phases_of(iterations), episodes=episodes, missing_episodes=missing, summary=summary,
         meta=meta_game(attackers, teams, payoff),
         exploitability=exploitability(players, store.newest_evaluation_rows()),
+        generations=generations, missing_generations=missing_generations,
     )
 
 
@@ -256,6 +262,9 @@ def rating_rows(data: ReportData) -> list[list[str]]:
             for p in by_rating]
 
 
+GENERATIONS_NOTE = ("Every snapshot of each side against the scripted players of the other side, by snapshot version: "
+                    "rising lines, the league improves; lines that rise against some opponents and fall against "
+                    "others, or go up and down, it cycles.")
 NO_EXPLOITABILITY = "No best responses yet: python -m league.exploit --run-dir DIR --player NAME trains them."
 
 
@@ -389,6 +398,7 @@ def build_report(run_dir: Path) -> Path:
     out.mkdir(exist_ok=True)
     heat_map(data, out / "payoff.png")
     ratings_plot(data, out / "ratings.png")
+    generations_plot(data.generations, out / "generations.png", DPI)
     line_plot(data.win_rates, data.phases, "win rate in training", "learner win rates (per iteration)", out / "win_rates.png")
     line_plot(data.returns, data.phases, "mean episode return", "episode returns of the learners", out / "returns.png")
     figures = []
@@ -406,6 +416,8 @@ def build_report(run_dir: Path) -> Path:
         markdown_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "## Payoff matrix", "", "![payoff](payoff.png)", "",
         "## Meta-game", "", format_meta_game(data.meta, NO_META_GAME),
+        "## Progress over generations", "", GENERATIONS_NOTE, "", "![generations](generations.png)", "",
+        *data.missing_generations, "",
         "## Exploitability", "", exploitability_markdown(data),
         "## Ratings", "", "![ratings](ratings.png)", "",
         RATINGS_NOTE, "",

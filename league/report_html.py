@@ -18,8 +18,10 @@ from plotly.offline import get_plotlyjs
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.render import COLOURS
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
+from league.generations import generations_figure
 from league.nash import META_GAME_NOTE, MIXTURE_HEADER
 from league.report import (
+    GENERATIONS_NOTE,
     NO_EXPLOITABILITY,
     NO_META_GAME,
     RATINGS_HEADER,
@@ -218,6 +220,9 @@ def write(data: "ReportData", out: Path) -> None:
         html_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "<h2>Payoff matrix</h2>", figure_div(payoff_figure(data), "payoff"),
         "<h2>Meta-game</h2>", *meta_game_html(data),
+        "<h2>Progress over generations</h2>", f"<p>{html.escape(GENERATIONS_NOTE)}</p>",
+        figure_div(generations_figure(data.generations), "generations"),
+        *(f"<p class='note'>{html.escape(text)}</p>" for text in data.missing_generations),
         "<h2>Exploitability</h2>", *exploitability_html(data),
         "<h2>Ratings</h2>", figure_div(ratings_figure(data), "ratings"), f"<p>{html.escape(RATINGS_NOTE)}</p>", html_table(RATINGS_HEADER, rating_rows(data)),
         "<h2>Learner win rates in training</h2>",
