@@ -50,6 +50,13 @@ class GenerationLine:
     def intervals(self) -> list[tuple[float, float]]:
         return [wilson_interval(w, n) for w, n in zip(self.wins, self.games)]
 
+    def error_bars(self) -> tuple[list[float], list[float]]:
+        """Distances from each rate down and up to its interval's ends; at 0 or 1 wins of all
+        games the interval's end lands on the rate up to rounding (1 - 1e-16), not past it."""
+        below = [max(0.0, r - low) for r, (low, _) in zip(self.rates, self.intervals)]
+        above = [max(0.0, high - r) for r, (_, high) in zip(self.rates, self.intervals)]
+        return below, above
+
 
 def generation_lines(
     players: list[Player], payoff: dict[tuple[int, int], tuple[int, int]]
@@ -84,9 +91,7 @@ def generations_plot(lines: list[GenerationLine], out: Path, dpi: int = 110) -> 
     for ax, side in zip(axes, SIDES):
         shown = [line for line in lines if line.side == side]
         for k, line in enumerate(shown):
-            low, high = zip(*line.intervals) if line.versions else ((), ())
-            errors = [[r - lo for r, lo in zip(line.rates, low)], [hi - r for r, hi in zip(line.rates, high)]]
-            ax.errorbar(line.versions, line.rates, yerr=errors, label=line.label, marker="o", ms=3.5, lw=1.2,
+            ax.errorbar(line.versions, line.rates, yerr=list(line.error_bars()), label=line.label, marker="o", ms=3.5, lw=1.2,
                         capsize=2.5, color=colours(k % 10))
         if not shown:
             ax.text(0.5, 0.5, f"no {side} snapshot or no scripted opponent", ha="center", va="center", transform=ax.transAxes)
@@ -107,11 +112,10 @@ def generations_figure(lines: list[GenerationLine]) -> go.Figure:
     fig = make_subplots(rows=1, cols=2, shared_yaxes=True, subplot_titles=[PANEL_TITLES[s] for s in SIDES])
     for column, side in enumerate(SIDES, start=1):
         for line in (line for line in lines if line.side == side):
-            low, high = zip(*line.intervals) if line.versions else ((), ())
+            below, above = line.error_bars()
             fig.add_trace(go.Scatter(
                 x=line.versions, y=line.rates, name=line.label, mode="lines+markers",
-                error_y=dict(type="data", symmetric=False, array=[hi - r for r, hi in zip(line.rates, high)],
-                             arrayminus=[r - lo for r, lo in zip(line.rates, low)]),
+                error_y=dict(type="data", symmetric=False, array=above, arrayminus=below),
                 customdata=list(zip(line.wins, line.games)),
                 hovertemplate="version %{x}: %{y:.3f} (%{customdata[0]} of %{customdata[1]} games)",
             ), row=1, col=column)

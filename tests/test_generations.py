@@ -7,7 +7,7 @@ import pytest
 from PIL import Image
 
 from league.config import saved_run_config
-from league.generations import generation_lines
+from league.generations import generation_lines, generations_figure, generations_plot
 from league.players import Player
 from league.report import build_report, gather
 from league.store import LeagueStore
@@ -37,6 +37,16 @@ def test_each_lineage_against_each_scripted_opponent_by_version():
     assert (team.side, team.versions, team.rates) == ("team", [0], [0.7])  # the team's own win rate
     assert by_label["attacker-m3 vs scripted-straight+pure_pursuit"].versions == []
     assert missing == ["attacker-m3-v1 vs scripted-straight+pure_pursuit not evaluated"]
+
+
+def test_plots_draw_rates_of_0_and_1(tmp_path):
+    # A Wilson interval's end at 10 of 10 wins is 1 - 1e-16, just below the rate.
+    lines, _ = generation_lines([A0, A1, AVOID], {(A0.id, AVOID.id): (0, 10), (A1.id, AVOID.id): (10, 10)})
+    below, above = lines[0].error_bars()
+    assert min(below + above) >= 0 and above[0] > 0.2 and below[1] > 0.2
+    generations_plot(lines, tmp_path / "generations.png")
+    assert Image.open(tmp_path / "generations.png").size[0] > 1000
+    assert generations_figure(lines).data[0].error_y.array == tuple(above)
 
 
 @pytest.fixture
