@@ -93,13 +93,14 @@ def generations_plot(lines: list[GenerationLine], out: Path, dpi: int = 110) -> 
         for k, line in enumerate(shown):
             ax.errorbar(line.versions, line.rates, yerr=list(line.error_bars()), label=line.label, marker="o", ms=3.5, lw=1.2,
                         capsize=2.5, color=colours(k % 10))
-        if not shown:
+        if shown:
+            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False)
+        else:
             ax.text(0.5, 0.5, f"no {side} snapshot or no scripted opponent", ha="center", va="center", transform=ax.transAxes)
         ax.set_title(PANEL_TITLES[side])
         ax.set_xlabel("snapshot version")
         ax.set_ylim(-0.03, 1.03)
         ax.xaxis.get_major_locator().set_params(integer=True)
-        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False)
     axes[0].set_ylabel("win rate of the snapshot")
     fig.suptitle("progress over generations (newest evaluation of each pair, 95% Wilson intervals)")
     fig.tight_layout()
