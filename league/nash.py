@@ -27,7 +27,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linprog
 
 from league.payoff import ATTACKER_WINS, aggregate
 from league.players import Player
@@ -59,6 +58,8 @@ class NashEquilibrium:
 
 def _maximin(payoff: np.ndarray) -> tuple[np.ndarray, float]:
     """The row player's maximin mixture and value of ``payoff`` (row player maximises)."""
+    from scipy.optimize import linprog  # here: seconds to import, and league.status often has no game to solve
+
     rows, columns = payoff.shape
     # Variables (x_1 .. x_rows, v); minimise -v.
     cost = np.zeros(rows + 1)
