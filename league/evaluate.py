@@ -2,7 +2,8 @@
 
 Plays every chosen attacker against every chosen team on the fixed evaluation games
 (frozen players only: snapshots and scripted players), prints win rates with 95% Wilson
-intervals and outcome counts, then the table per attacker reward method. Results go to
+intervals and outcome counts, the table per attacker reward method, then the Nash
+equilibrium of the meta-game on these results (``league.nash``). Results go to
 the league database as evaluation matches of the run's last iteration, replacing earlier
 evaluations of the same pairs (the same fixed games again are one measurement, not new
 evidence), and the ratings of that iteration are refitted with them.
@@ -17,6 +18,7 @@ from pathlib import Path
 import torch
 
 from league.evaluation import PairResult, evaluate_pairs, format_table, wilson_interval
+from league.nash import format_meta_game, meta_game, meta_game_players
 from league.payoff import league_ratings
 from league.players import Player
 from league.run_dir import RunDirError, open_run
@@ -132,6 +134,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{episodes} fixed games of scenario set `{run.game.scenario}` per pair\n")
     print(format_table(results))
     print(method_table(results))
+    attackers, teams = meta_game_players(players)
+    meta = meta_game(attackers, teams, {(r.attacker.id, r.team.id): (r.attacker_wins, r.games) for r in results})
+    print("## Meta-game of the evaluated players\n\n" + format_meta_game(meta, "no snapshot or scripted player on a side"))
     return 0
 
 

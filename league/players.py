@@ -8,6 +8,7 @@ derived from its columns, never parsed back from names.
 | learner    | the side's learning module (``attacker`` or ``team``)  | yes     |
 | snapshot   | a frozen copy of a learner at some iteration           | no      |
 | scripted   | a scripted player of ``envs.scripted``                 | no      |
+| best_response | trained from scratch against one frozen player (its ``parent``) by ``league.exploit``; not in the training pool | no (frozen once trained) |
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Literal
 from envs.scripted import PAPER_TEAM
 
 Side = Literal["attacker", "team"]
-Kind = Literal["learner", "snapshot", "scripted"]
+Kind = Literal["learner", "snapshot", "scripted", "best_response"]
 
 
 def other_side(side: str) -> str:
@@ -39,6 +40,8 @@ class Player:
     env_steps: int = 0
     checkpoint: str | None = None
     created_iteration: int = 0
+    seed: int | None = None  # a best response's training seed
+    env_step_budget: int | None = None  # a best response's training budget (env steps asked for)
 
     @property
     def name(self) -> str:
@@ -52,6 +55,8 @@ class Player:
                 return f"scripted-{self.scripted_attacker}"
             return f"scripted-{self.scripted_targeter}+{self.scripted_defender}"
         base = f"attacker-m{self.reward_method}" if self.side == "attacker" else "team"
+        if self.kind == "best_response":
+            return f"{base}-br{self.version}"
         return base if self.kind == "learner" else f"{base}-v{self.version}"
 
     @property

@@ -1,8 +1,10 @@
 """A run's report: ``python -m league.report --run-dir DIR`` writes ``DIR/report/``.
 
 * ``report.md`` with PNGs: the Table 1 analogue next to the paper's numbers, the payoff
-  matrix, ratings over training (one panel per side) and a table of every player's
-  rating, learner win rates and episode returns in the iterations their side learned
+  matrix and its meta-game (Nash mixtures and value, ``league.nash``), every snapshot against
+  the scripted players of the other side by version (``league.generations``), the exploitability of
+  the players ``league.exploit`` trained best responses against, ratings over training (one panel per side) and a table of every player's
+  Elo and Nash-averaged rating, learner win rates and episode returns in the iterations their side learned
   (phases shaded; a line breaks between a learner's phases), and 3D trajectories of a won and a lost game
   for each side (the analogues of the paper's Fig. 3 and Fig. 4), and the learning curves
   (``league.curves``: win rate and return over env steps, with reference lines).
@@ -21,7 +23,7 @@ import argparse
 import json
 import sys
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
@@ -37,6 +39,9 @@ from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.curves import plot_run
 from league.evaluation import agents_of, evaluate_pairs, wilson_interval
+from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability
+from league.generations import GenerationLine, generation_lines, generations_plot
+from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
 from league.payoff import aggregate, attacker_won, league_ratings, wins_of
 from league.players import Player
 from league.run_dir import RunDirError, open_run
@@ -86,6 +91,10 @@ class ReportData:
     episodes: list[Episode]
     missing_episodes: list[str]  # why a won or lost game of a side is not shown
     summary: str
+    meta: MetaGame | None = None  # the Nash equilibrium of the payoff matrix (None: a side has no frozen player)
+    exploitability: list[Exploitability] = field(default_factory=list)  # best responses of league.exploit
+    generations: list[GenerationLine] = field(default_factory=list)  # snapshots against the scripted panel
+    missing_generations: list[str] = field(default_factory=list)  # points of those lines not evaluated
 
 
 # ---------------------------------------------------------------- data
@@ -168,9 +177,7 @@ def record_episodes(run: RunConfig, run_dir: Path, attacker: Player, team: Playe
 
 def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
     players = store.players()
-    frozen = [p for p in players if p.kind != "learner"]
-    attackers = [p for p in frozen if p.side == "attacker"]
-    teams = [p for p in frozen if p.side == "team"]
+    attackers, teams = meta_game_players(players)  # snapshots and scripted players
     payoff = evaluation_payoff(store, run, run_dir, [(a, t) for a in attackers for t in teams])
 
     ratings: dict[int, tuple[list[int], list[float]]] = defaultdict(lambda: ([], []))
@@ -208,6 +215,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         f"training episodes, {store.training_seconds():.0f} s of training iterations; {len(players)} players. "
         f"Evaluation: {run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair."
     )
+    generations, missing_generations = generation_lines(players, payoff)
     return ReportData(
         run=run, players=players, attackers=attackers, teams=teams, payoff=payoff, ratings=dict(ratings),
         final_ratings=league_ratings(store.counted_results(), [p.id for p in players]),
@@ -215,6 +223,9 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         win_rates=while_learning(learner_win_rates(store, players), learner_sides, learning_side),
         returns=while_learning(dict(returns), learner_sides, learning_side),
         phases=phases_of(iterations), episodes=episodes, missing_episodes=missing, summary=summary,
+        meta=meta_game(attackers, teams, payoff),
+        exploitability=exploitability(players, store.newest_evaluation_rows()),
+        generations=generations, missing_generations=missing_generations,
     )
 
 
@@ -237,18 +248,34 @@ TABLE_ONE_HEADER = ["method", "attacker", "win rate vs the paper's scripted team
 CURVES_NOTE = ("Each learner, as it was every `evaluation.curve_every_env_steps` of its env steps, against its curve "
                "opponents on the same fixed games (deterministic actions; `league.curves`), with the scripted players "
                "of its side and its untrained version 0 on those games as horizontal lines.")
-RATINGS_HEADER = ["player", "side", "kind", "rating", "games"]
+NO_META_GAME = "the league has no frozen attacker or no frozen team."
+RATINGS_HEADER = ["player", "side", "kind", "rating", "Nash-averaged rating", "games"]
 RATINGS_NOTE = ("Every player's rating, fitted to every game counted once: the training episodes and each pair's "
                 "newest evaluation (the same fixed games played again are one measurement). A player without "
-                "games has no rating.")
+                "games has no rating. Nash-averaged rating: the player's win rate against the other side's Nash "
+                "mixture (frozen league players only).")
 
 
 def rating_rows(data: ReportData) -> list[list[str]]:
     """Every player's rating fitted to every game counted once, best first; players without games have none."""
     newest = data.final_ratings
     by_rating = sorted(data.players, key=lambda p: (p.id not in newest, -newest.get(p.id, 0.0)))
-    return [[p.name, p.side, p.kind, f"{newest[p.id]:.0f}" if p.id in newest else "no games", str(data.games.get(p.id, 0))]
+    nash = data.meta.ratings() if data.meta else {}
+    return [[p.name, p.side, p.kind, f"{newest[p.id]:.0f}" if p.id in newest else "no games",
+             f"{nash[p.id]:.3f}" if p.id in nash else "", str(data.games.get(p.id, 0))]
             for p in by_rating]
+
+
+GENERATIONS_NOTE = ("Every snapshot of each side against the scripted players of the other side, by snapshot version: "
+                    "rising lines, the league improves; lines that rise against some opponents and fall against "
+                    "others, or go up and down, it cycles.")
+NO_EXPLOITABILITY = "No best responses yet: python -m league.exploit --run-dir DIR --player NAME trains them."
+
+
+def exploitability_markdown(data: ReportData) -> str:
+    if not data.exploitability:
+        return NO_EXPLOITABILITY + "\n"
+    return EXPLOITABILITY_NOTE + "\n\n" + markdown_table(EXPLOITABILITY_HEADER, [e.row() for e in data.exploitability])
 
 
 def markdown_table(header: list[str], rows: list[list[str]]) -> str:
@@ -376,6 +403,7 @@ def build_report(run_dir: Path) -> Path:
         store.close()
     heat_map(data, out / "payoff.png")
     ratings_plot(data, out / "ratings.png")
+    generations_plot(data.generations, out / "generations.png", DPI)
     line_plot(data.win_rates, data.phases, "win rate in training", "learner win rates (per iteration)", out / "win_rates.png")
     line_plot(data.returns, data.phases, "mean episode return", "episode returns of the learners", out / "returns.png")
     figures = []
@@ -392,6 +420,10 @@ def build_report(run_dir: Path) -> Path:
         "published, so compare the ordering, not the values.", "",
         markdown_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "## Payoff matrix", "", "![payoff](payoff.png)", "",
+        "## Meta-game", "", format_meta_game(data.meta, NO_META_GAME),
+        "## Progress over generations", "", GENERATIONS_NOTE, "", "![generations](generations.png)", "",
+        *data.missing_generations, "",
+        "## Exploitability", "", exploitability_markdown(data),
         "## Ratings", "", "![ratings](ratings.png)", "",
         RATINGS_NOTE, "",
         markdown_table(RATINGS_HEADER, rating_rows(data)),

@@ -17,7 +17,13 @@ from plotly.offline import get_plotlyjs
 
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.render import COLOURS
+from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
+from league.generations import generations_figure
+from league.nash import META_GAME_NOTE, MIXTURE_HEADER
 from league.report import (
+    GENERATIONS_NOTE,
+    NO_EXPLOITABILITY,
+    NO_META_GAME,
     RATINGS_HEADER,
     RATINGS_NOTE,
     SIDE_COLOURS,
@@ -189,6 +195,20 @@ def trajectory_figure(episode: Episode, game: "GameConfig") -> go.Figure:
     return fig
 
 
+def meta_game_html(data: "ReportData") -> list[str]:
+    if data.meta is None:
+        return [f"<p>No meta-game: {html.escape(NO_META_GAME)}</p>"]
+    return [f"<p>{html.escape(data.meta.value_line())}</p>", html_table(MIXTURE_HEADER, data.meta.mixture_rows()),
+            f"<p class='note'>{html.escape(META_GAME_NOTE)}</p>"]
+
+
+def exploitability_html(data: "ReportData") -> list[str]:
+    if not data.exploitability:
+        return [f"<p>{html.escape(NO_EXPLOITABILITY)}</p>"]
+    return [f"<p>{html.escape(EXPLOITABILITY_NOTE)}</p>",
+            html_table(EXPLOITABILITY_HEADER, [e.row() for e in data.exploitability])]
+
+
 def write(data: "ReportData", out: Path) -> None:
     """Write the page to ``out`` (through a temporary file: never a half-written report)."""
     parts = [
@@ -199,6 +219,11 @@ def write(data: "ReportData", out: Path) -> None:
         "ordering, not the values.</p>",
         html_table(TABLE_ONE_HEADER, table_one_rows(data)),
         "<h2>Payoff matrix</h2>", figure_div(payoff_figure(data), "payoff"),
+        "<h2>Meta-game</h2>", *meta_game_html(data),
+        "<h2>Progress over generations</h2>", f"<p>{html.escape(GENERATIONS_NOTE)}</p>",
+        figure_div(generations_figure(data.generations), "generations"),
+        *(f"<p class='note'>{html.escape(text)}</p>" for text in data.missing_generations),
+        "<h2>Exploitability</h2>", *exploitability_html(data),
         "<h2>Ratings</h2>", figure_div(ratings_figure(data), "ratings"), f"<p>{html.escape(RATINGS_NOTE)}</p>", html_table(RATINGS_HEADER, rating_rows(data)),
         "<h2>Learner win rates in training</h2>",
         figure_div(line_figure(data.win_rates, data.phases, "win rate in training", "learner win rates (per iteration)"),

@@ -416,3 +416,13 @@ def learner_stats(result: dict[str, Any], modules: list[str]) -> dict[str, dict[
     """The Learner's results (losses, entropy, KL, ...) of each of ``modules`` it trained in this ``train()``."""
     learners = result.get(LEARNER_RESULTS, {})
     return {m: dict(learners[m]) for m in modules if m in learners}
+
+
+def load_frozen_module(algo: Algorithm, module_id: str, path: Path) -> None:
+    """Set the weights of ``module_id`` (already in the algorithm) to the module saved at ``path``
+    (``save_module``), in the learners and every EnvRunner: a frozen player of another run."""
+    weights = load_module(path).get_state()
+    algo.learner_group.set_weights({module_id: weights})
+    algo.env_runner_group.foreach_env_runner(  # set directly, as in ``add_snapshot``
+        lambda runner: runner.module[module_id].set_state(weights), local_env_runner=True
+    )

@@ -12,6 +12,8 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
+from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability
+from league.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_game
 from league.payoff import aggregate, player_record
 from league.run_dir import RunDirError, open_run, usable_checkpoints
 from league.store import LeagueStore
@@ -40,6 +42,32 @@ def league_table(store: LeagueStore, source: str | None = None) -> Table:
             f"{wins / games:.3f}" if games else "",
         )
     return table
+
+
+def nash_section(store: LeagueStore) -> list:
+    """The meta-game's value and the players with nonzero Nash weight (or why there is no meta-game)."""
+    meta, why_not = league_meta_game(store.players(), store.newest_evaluation_rows())
+    if meta is None:
+        return [f"no meta-game: {why_not}"]
+    table = Table(title="Nash mixtures", caption=META_GAME_NOTE)
+    for column in MIXTURE_HEADER:
+        table.add_column(column, justify="left" if column in ("side", "player") else "right")
+    for row in meta.mixture_rows():
+        table.add_row(*row)
+    return [meta.value_line(), table]
+
+
+def exploitability_section(store: LeagueStore) -> list:
+    """Each exploited player's best responses (``league.exploit``): their win rates, mean and interval over seeds."""
+    found = exploitability(store.players(), store.newest_evaluation_rows())
+    if not found:
+        return []
+    table = Table(title="exploitability (best responses)", caption=EXPLOITABILITY_NOTE)
+    for column in EXPLOITABILITY_HEADER:
+        table.add_column(column, justify="left" if column == "player" else "right")
+    for item in found:
+        table.add_row(*item.row())
+    return [table]
 
 
 def run_line(store: LeagueStore) -> str:
@@ -76,6 +104,8 @@ def main(argv: list[str] | None = None) -> int:
     for problem in problems:
         console.print(f"warning: {problem}; a resume falls back to the newest intact checkpoint")
     console.print(league_table(store, args.source))
+    for part in nash_section(store) + exploitability_section(store):
+        console.print(part)
     store.close()
     return 0
 

@@ -55,7 +55,9 @@ CREATE TABLE IF NOT EXISTS players (
     env_steps INTEGER NOT NULL DEFAULT 0,
     checkpoint TEXT,                 -- saved module directory, relative to the run directory
     created_iteration INTEGER NOT NULL,
-    created_at TEXT NOT NULL DEFAULT (datetime('now'))
+    created_at TEXT NOT NULL DEFAULT (datetime('now')),
+    seed INTEGER,                    -- a best response's training seed
+    env_step_budget INTEGER          -- a best response's training budget in env steps
 );
 CREATE TABLE IF NOT EXISTS matches (
     iteration INTEGER NOT NULL,
@@ -110,7 +112,7 @@ TABLES = ("players", "matches", "ratings", "iterations", "checkpoints", "meta")
 
 PLAYER_COLUMNS = (
     "id, side, kind, version, reward_method, parent, scripted_attacker, scripted_targeter, "
-    "scripted_defender, env_steps, checkpoint, created_iteration"
+    "scripted_defender, env_steps, checkpoint, created_iteration, seed, env_step_budget"
 )
 
 
@@ -153,6 +155,10 @@ class LeagueStore:
             tables = {name for (name,) in self.db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
             if "curve_points" not in tables:  # a database from before learning curves were recorded
                 self.db.executescript(f"BEGIN; {SCHEMA} COMMIT;")
+            columns = {row[1] for row in self.db.execute("PRAGMA table_info(players)")}
+            for column in ("seed", "env_step_budget"):  # a database from before best responses
+                if column not in columns:
+                    self.db.execute(f"ALTER TABLE players ADD COLUMN {column} INTEGER")
         except sqlite3.DatabaseError as err:
             self.db.close()
             raise DamagedStoreError(f"{path} is damaged ({err})") from err

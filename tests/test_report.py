@@ -119,7 +119,7 @@ def test_report_page_opens_in_a_browser_without_errors_and_draws_the_3d_scene(re
     assert check.fetched == []  # opens offline: nothing but the file itself is requested
     scenes = len(list(report_dir.glob("trajectory_*.png")))
     assert check.scenes == scenes > 0
-    assert check.figures == scenes + 4  # payoff, ratings, win rates, returns
+    assert check.figures == scenes + 5  # payoff, generations, ratings, win rates, returns
     (tmp_path / "scene.png").write_bytes(check.screenshot)
     # The scene is drawn (WebGL), not only its frame: the agents' paths are in the screenshot.
     for agent in (ATTACKER, DEFENDER):

@@ -1,0 +1,88 @@
+"""The report's progress over generations, meta-game and Nash-averaged ratings."""
+
+import shutil
+import sqlite3
+
+import pytest
+from PIL import Image
+
+from league.config import saved_run_config
+from league.generations import generation_lines, generations_figure, generations_plot
+from league.players import Player
+from league.report import build_report, gather
+from league.store import LeagueStore
+
+A0 = Player(1, "attacker", "snapshot", 0, 2)
+A1 = Player(2, "attacker", "snapshot", 1, 2)
+A1_M3 = Player(3, "attacker", "snapshot", 1, 3)
+T0 = Player(4, "team", "snapshot", 0)
+PURSUIT = Player(5, "attacker", "scripted", 0, scripted_attacker="pure_pursuit")
+AVOID = Player(6, "team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit")
+STRAIGHT = Player(7, "team", "scripted", 0, scripted_targeter="straight", scripted_defender="pure_pursuit")
+
+
+def test_each_lineage_against_each_scripted_opponent_by_version():
+    payoff = {(A1.id, AVOID.id): (7, 10), (A0.id, AVOID.id): (2, 10), (A0.id, STRAIGHT.id): (9, 10),
+              (A1.id, STRAIGHT.id): (8, 10), (A1_M3.id, AVOID.id): (5, 10), (PURSUIT.id, T0.id): (3, 10)}
+    lines, missing = generation_lines([A1, A0, A1_M3, T0, PURSUIT, AVOID, STRAIGHT], payoff)
+    by_label = {line.label: line for line in lines}
+    assert set(by_label) == {
+        "attacker-m2 vs scripted-avoid_attacker+pure_pursuit", "attacker-m2 vs scripted-straight+pure_pursuit",
+        "attacker-m3 vs scripted-avoid_attacker+pure_pursuit", "attacker-m3 vs scripted-straight+pure_pursuit",
+        "team vs scripted-pure_pursuit",
+    }
+    line = by_label["attacker-m2 vs scripted-avoid_attacker+pure_pursuit"]
+    assert (line.versions, line.rates) == ([0, 1], [0.2, 0.7])  # by version, whatever the players' order
+    team = by_label["team vs scripted-pure_pursuit"]
+    assert (team.side, team.versions, team.rates) == ("team", [0], [0.7])  # the team's own win rate
+    assert by_label["attacker-m3 vs scripted-straight+pure_pursuit"].versions == []
+    assert missing == ["attacker-m3-v1 vs scripted-straight+pure_pursuit not evaluated"]
+
+
+def test_plots_draw_rates_of_0_and_1(tmp_path):
+    # A Wilson interval's end at 10 of 10 wins is 1 - 1e-16, just below the rate.
+    lines, _ = generation_lines([A0, A1, AVOID], {(A0.id, AVOID.id): (0, 10), (A1.id, AVOID.id): (10, 10)})
+    below, above = lines[0].error_bars()
+    assert min(below + above) >= 0 and above[0] > 0.2 and below[1] > 0.2
+    generations_plot(lines, tmp_path / "generations.png")
+    assert Image.open(tmp_path / "generations.png").size[0] > 1000
+    assert generations_figure(lines).data[0].error_y.array == tuple(above)
+
+
+@pytest.fixture
+def run_copy(tiny_run, tmp_path):
+    copy = tmp_path / "run"
+    shutil.copytree(tiny_run, copy)
+    return copy
+
+
+def test_report_plays_a_missing_pair_and_draws_the_generations(run_copy):
+    store = LeagueStore(run_copy)
+    names = {p.name: p for p in store.players()}
+    store.close()
+    snapshot, scripted = names["attacker-m2-v1"], names["scripted-avoid_attacker+pure_pursuit"]
+    with sqlite3.connect(run_copy / "league.db") as db:  # as if the run had not evaluated this pair
+        db.execute("DELETE FROM matches WHERE source = 'evaluation' AND attacker = ? AND team = ?", (snapshot.id, scripted.id))
+    store = LeagueStore(run_copy)
+    try:
+        data = gather(store, saved_run_config(run_copy), run_copy)
+    finally:
+        store.close()
+    [line] = [line for line in data.generations if line.label == "attacker-m2 vs scripted-avoid_attacker+pure_pursuit"]
+    assert line.versions == [0, 1] and not data.missing_generations
+    assert data.payoff[(snapshot.id, scripted.id)][1] == line.games[1]  # played now, on the run's evaluation games
+
+    report = build_report(run_copy).read_text()
+    width, height = Image.open(run_copy / "report" / "generations.png").size
+    assert width > 1000 and height > 400
+    assert "## Progress over generations" in report and "![generations](generations.png)" in report
+    assert "## Meta-game" in report and "value" in report
+    assert "## Exploitability" in report and "No best responses yet" in report
+    # Every frozen player has a Nash-averaged rating in [0, 1] beside its Elo rating; learners have none.
+    rows = [row.split(" | ") for row in report.splitlines() if row.startswith("| ") and row.count(" | ") == 5]
+    nash = {cells[0].lstrip("| "): cells[4] for cells in rows[2:] if cells[2] in ("snapshot", "scripted", "learner")}
+    assert nash["attacker-m2"] == "" and nash["team"] == ""
+    assert all(0 <= float(nash[name]) <= 1 for name in nash if name not in ("attacker-m2", "team"))
+    page = (run_copy / "report" / "index.html").read_text()
+    assert "id='generations'" in page or 'id="generations"' in page
+    assert "Nash-averaged rating" in page
