@@ -1,5 +1,6 @@
 """Shared fixtures: one tiny finished league run for the tests that read a run directory."""
 
+import shutil
 import subprocess
 import sys
 
@@ -28,3 +29,11 @@ def tiny_run(tmp_path_factory):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     (base / "run.log").write_text(proc.stderr)  # its progress lines, as a log file would hold them
     return run
+
+
+@pytest.fixture
+def run_copy(tiny_run, tmp_path):
+    """A copy of the tiny run that a test may change."""
+    copy = tmp_path / "run"
+    shutil.copytree(tiny_run, copy)
+    return copy

@@ -1,6 +1,5 @@
 """The report's progress over generations, meta-game and Nash-averaged ratings."""
 
-import shutil
 import sqlite3
 
 import pytest
@@ -48,12 +47,6 @@ def test_plots_draw_rates_of_0_and_1(tmp_path):
     assert Image.open(tmp_path / "generations.png").size[0] > 1000
     assert generations_figure(lines).data[0].error_y.array == tuple(above)
 
-
-@pytest.fixture
-def run_copy(tiny_run, tmp_path):
-    copy = tmp_path / "run"
-    shutil.copytree(tiny_run, copy)
-    return copy
 
 
 def test_report_plays_a_missing_pair_and_draws_the_generations(run_copy):

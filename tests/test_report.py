@@ -1,7 +1,6 @@
 """What the report and the league's numbers show: games counted once, the HTML page in a browser, progress lines."""
 
 import re
-import shutil
 import sqlite3
 
 import numpy as np
@@ -17,13 +16,6 @@ from league.report import build_report
 from league.report_html import AGENT_COLOURS
 from league.store import LeagueStore
 
-
-@pytest.fixture
-def run_copy(tiny_run, tmp_path):
-    """A copy of the tiny run that a test may change."""
-    copy = tmp_path / "run"
-    shutil.copytree(tiny_run, copy)
-    return copy
 
 
 def pair_numbers(run_dir):
