@@ -148,7 +148,8 @@ SCENE_BOX_SCRIPT = """(() => {
 
 def check_page(page: Path, chromium: str, settle_seconds: float = 3.0, timeout: float = 300.0) -> PageCheck:
     """Load ``page`` in headless Chromium and report what a reader would see."""
-    with tempfile.TemporaryDirectory(prefix="report-browser-") as profile:
+    # Chromium's helper processes may still write the profile while it is removed: a leftover is harmless.
+    with tempfile.TemporaryDirectory(prefix="report-browser-", ignore_cleanup_errors=True) as profile:
         tools = DevTools(chromium, Path(profile))
         try:
             target = tools.call("Target.createTarget", url="about:blank")["targetId"]
