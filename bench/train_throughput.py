@@ -101,6 +101,16 @@ class PlainPolicy(torch.nn.Module):
         return self.agent.pi(split_policy_input(obs, own)[0])
 
 
+def local_resources(run: RunConfig) -> dict:
+    """A private Ray instance on this machine that can place every env runner of ``run``: a
+    cluster config (``{sampler: 1}`` per runner) runs all its runners on this one node."""
+    res = run.resources
+    return {
+        "num_cpus": max(res.num_cpus, int(np.ceil(res.num_env_runners * res.num_cpus_per_env_runner))),
+        "resources": {name: amount * res.num_env_runners for name, amount in res.custom_resources_per_env_runner.items()},
+    }
+
+
 def line(name: str, r: dict, target: float) -> str:
     reached = f"{r['reached'][0]:.0f} s / {r['reached'][1]} env steps" if r.get("reached") else "not reached"
     low, high = r["interval"]
@@ -128,7 +138,7 @@ def main() -> int:
             run = load_config(config, [*args.overrides, f"resources.sampler={sampler}"])
             torch.set_num_threads(run.resources.threads_for(1))
             steps = args.standard_env_steps or args.env_steps if sampler == "standard" else args.env_steps
-            ray.init(address="local", num_cpus=run.resources.num_cpus, include_dashboard=False, log_to_driver=False)
+            ray.init(address="local", include_dashboard=False, log_to_driver=False, **local_resources(run))
             try:
                 results[sampler] = train(run, steps, args.target, args.window)
             finally:
