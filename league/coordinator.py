@@ -23,7 +23,7 @@ import numpy as np
 from league import rllib_bridge as bridge
 from league.config import RunConfig
 from league.curves import LearningCurves, Measurements
-from league.evaluation import EvaluationPool, PairResult, evaluate_pairs
+from league.head_to_head import EvaluationPool, PairEvaluation, evaluate_pairs
 from league.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
 from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
@@ -105,7 +105,7 @@ class Coordinator:
         )
 
     def learner_win_rates(self, learner: Player, opponents: list[Player]) -> list[float]:
-        table = aggregate(self.store.match_rows("training"))
+        table = aggregate(self.store.outcome_rows("training"))
         return [win_rate(*record_against(table, learner.side, learner.id, opponent.id)) for opponent in opponents]
 
     def match_plan(self) -> tuple[bridge.MatchPlan, dict[str, dict[str, float]]]:
@@ -187,14 +187,14 @@ class Coordinator:
         return rows, steps
 
     def commit(self, result: dict[str, Any], phase: PhaseState, rows: list[tuple[int, int, str, int]],
-               snapshots: list[dict[str, Any]], evaluation: list[PairResult], curves: Measurements, checkpoint: Path | None,
+               snapshots: list[dict[str, Any]], evaluation: list[PairEvaluation], curves: Measurements, checkpoint: Path | None,
                steps: int, seconds: float) -> None:
         """The iteration's one transaction: results, new snapshots, steps, ratings, the
         iteration's row (of ``phase``, the one it trained in) and, when one was written, its
         checkpoint with the run state."""
         st = self.state
         with self.store.transaction():
-            self.store.record_matches(st.iteration, "training", rows)
+            self.store.record_outcomes(st.iteration, "training", rows)
             for columns in snapshots:
                 self.store.add_player(st.iteration, **columns)
             for learner in self.store.players(kind="learner"):
@@ -234,7 +234,7 @@ class Coordinator:
         """``(attacker id, team id, outcome, count)`` of the episodes that ended in this iteration."""
         attackers, teams = self.module_players()
         rows = []
-        for (attacker_module, targeter_module, defender_module), outcome, count in bridge.match_counts(result):
+        for (attacker_module, targeter_module, defender_module), outcome, count in bridge.episode_outcomes(result):
             attacker = attackers[attacker_module]
             team = teams[(targeter_module, defender_module)]
             rows.append((attacker.id, team.id, outcome, count))
@@ -252,7 +252,7 @@ class Coordinator:
     def set_trainable(self, side: str) -> None:
         bridge.set_trainable(self.algo, [learner.name for learner in self.learners(side)])
 
-    def evaluate_learners(self, side: str) -> list[PairResult]:
+    def evaluate_learners(self, side: str) -> list[PairEvaluation]:
         """The side's learners, as they are now, against their opponents on the fixed games."""
         pairs = []
         for learner in self.learners(side):

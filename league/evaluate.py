@@ -17,7 +17,7 @@ from pathlib import Path
 
 import torch
 
-from league.evaluation import PairResult, evaluate_pairs, format_table, wilson_interval
+from league.head_to_head import PairEvaluation, evaluate_pairs, format_table, wilson_interval
 from league.nash import format_meta_game, meta_game, meta_game_players
 from league.payoff import league_ratings
 from league.players import Player
@@ -33,7 +33,7 @@ def latest_by_method(players: list[Player]) -> dict[int, Player]:
     return latest
 
 
-def method_table(results: list[PairResult]) -> str:
+def method_table(results: list[PairEvaluation]) -> str:
     """Per attacker reward method (its newest snapshot): win rate against each kind of team."""
     attackers = latest_by_method([r.attacker for r in results])
     teams = sorted({r.team.id: r.team for r in results}.values(), key=lambda p: p.id)

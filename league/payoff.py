@@ -105,7 +105,7 @@ def aggregate(
     return {key: (w, n) for key, (w, n) in table.items()}
 
 
-def league_ratings(match_rows: list[tuple[int, int, str, int]], players: list[int]) -> dict[int, float]:
-    """Ratings from ``(attacker, team, outcome, count)`` rows (``LeagueStore.match_rows``)."""
-    table = aggregate(match_rows)
+def league_ratings(outcome_rows: list[tuple[int, int, str, int]], players: list[int]) -> dict[int, float]:
+    """Ratings from ``(attacker, team, outcome, count)`` rows (``LeagueStore.outcome_rows``)."""
+    table = aggregate(outcome_rows)
     return elo_ratings([(a, t, w, n) for (a, t), (w, n) in table.items()], players)

@@ -169,7 +169,7 @@ class OutcomeRecorder(RLlibCallback):
         log_match(metrics_logger, [episode.module_for(agent) for agent in AGENTS], outcome)
 
 
-def match_counts(result: dict[str, Any]) -> list[tuple[tuple[str, str, str], str, int]]:
+def episode_outcomes(result: dict[str, Any]) -> list[tuple[tuple[str, str, str], str, int]]:
     """``((attacker, targeter, defender modules), outcome, count)`` of one ``train()`` result."""
     counts = result.get(ENV_RUNNER_RESULTS, {}).get(MATCHES_KEY, {})
     rows = []

@@ -37,7 +37,7 @@ import yaml
 from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, load_config
 from league.coordinator import Coordinator, PhaseState, RunState, phase_count, phase_side
 from league.evaluate import method_table
-from league.evaluation import evaluate_pairs, format_table
+from league.head_to_head import evaluate_pairs, format_table
 from league.payoff import league_ratings
 from league.progress import ProgressReporter
 from league.run_dir import (

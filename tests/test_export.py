@@ -14,7 +14,7 @@ from envs.agents import AGENTS
 from envs.config import GameConfig
 from envs.match import play, scripted_players
 from envs.scenarios import evaluation_scenarios
-from league.evaluation import LearnedAgent, load_module
+from league.head_to_head import LearnedAgent, load_module
 from league.export import main as export_main
 
 REPO = Path(__file__).resolve().parent.parent
