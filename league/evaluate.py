@@ -4,7 +4,7 @@ Plays every chosen attacker against every chosen team on the fixed evaluation ga
 (frozen players only: snapshots and scripted players), prints win rates with 95% Wilson
 intervals and outcome counts, the table per attacker reward method, then the Nash
 equilibrium of the meta-game on these results (``league.nash``). Results go to
-the league database as evaluation matches of the run's last iteration, replacing earlier
+the league database as evaluation results of the run's last iteration, replacing earlier
 evaluations of the same pairs (the same fixed games again are one measurement, not new
 evidence), and the ratings of that iteration are refitted with them.
 """

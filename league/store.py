@@ -1,6 +1,6 @@
 """League state in SQLite (``league.db`` in the run directory): the single source of truth.
 
-The coordinator writes one transaction per iteration holding that iteration's match
+The coordinator writes one transaction per iteration holding that iteration's game
 results, new players, ratings, counters and, when it checkpointed, the checkpoint
 record; a kill mid-iteration therefore leaves the database at the previous iteration.
 On resume, rows of iterations after the last checkpoint are deleted
@@ -59,6 +59,7 @@ CREATE TABLE IF NOT EXISTS players (
     seed INTEGER,                    -- a best response's training seed
     env_step_budget INTEGER          -- a best response's training budget in env steps
 );
+-- games' outcomes by (attacker, team); the table keeps its first name so older databases open
 CREATE TABLE IF NOT EXISTS matches (
     iteration INTEGER NOT NULL,
     source TEXT NOT NULL,            -- 'training' or 'evaluation'
