@@ -33,8 +33,8 @@ from envs.scenarios import evaluation_scenarios
 from envs.observations import split_policy_input
 from envs.scripted import ScriptedPlayer
 from league.config import RunConfig, load_config
-from league.head_to_head import LearnedAgent, wilson_interval
-from league.payoff import attacker_won
+from league.head_to_head import LearnedAgent
+from league.payoff import attacker_won, wilson_interval
 from league.players import Player
 from league.rllib_bridge import MatchPlan, build_config, episode_outcomes, set_trainable
 

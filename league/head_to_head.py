@@ -13,7 +13,6 @@ same numbers.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -29,45 +28,11 @@ from envs.observations import policy_input
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import ScriptedPlayer
 from envs.vector_env import TargetDefenseVectorEnv
+from league.payoff import wilson_interval
 from league.players import Player
 from league.rollout import ModuleAct, Policy, Rollout, ScriptedOnState
 
 EVALUATION_CHUNK = 64  # steps per rollout play: bounds the rows kept, whatever the number of games
-
-Z_95 = 1.959963984540054
-
-
-def wilson_interval(wins: int, games: int, z: float = Z_95) -> tuple[float, float]:
-    """95% Wilson score interval of a win rate."""
-    if games == 0:
-        return (0.0, 1.0)
-    p = wins / games
-    denom = 1 + z * z / games
-    centre = (p + z * z / (2 * games)) / denom
-    half = z * math.sqrt(p * (1 - p) / games + z * z / (4 * games * games)) / denom
-    return (max(0.0, centre - half), min(1.0, centre + half))
-
-
-class LearnedAgent:
-    """One agent driven by a saved RLModule's deterministic action, as a controller of
-    ``envs.match.play`` (the report's recorded trajectories)."""
-
-    def __init__(self, module: torch.nn.Module, agent: str):
-        self.module = module
-        self.index = AGENTS.index(agent)
-
-    @torch.no_grad()
-    def act(self, game: BatchedGame) -> np.ndarray:
-        obs = policy_input(game.observations()[self.index], game.global_state())
-        return self.module.deterministic_action(torch.from_numpy(obs)).numpy().astype(np.float64)
-
-
-def load_module(path: str | Path) -> torch.nn.Module:
-    """A saved player's RLModule, in eval mode (``league.rllib_bridge.load_module``)."""
-    from league import rllib_bridge
-
-    return rllib_bridge.load_module(path)
-
 
 def deterministic(module: torch.nn.Module) -> ModuleAct:
     """A module's forward pass for the rollout: its deterministic action, no other outputs."""
@@ -77,6 +42,26 @@ def deterministic(module: torch.nn.Module) -> ModuleAct:
         return module.deterministic_action(torch.from_numpy(obs)).numpy(), {}
 
     return act
+
+
+class LearnedAgent:
+    """One agent driven by a saved RLModule's deterministic action, as a controller of
+    ``envs.match.play`` (the report's recorded trajectories)."""
+
+    def __init__(self, module: torch.nn.Module, agent: str):
+        self.forward = deterministic(module)
+        self.index = AGENTS.index(agent)
+
+    def act(self, game: BatchedGame) -> np.ndarray:
+        actions, _ = self.forward(policy_input(game.observations()[self.index], game.global_state()))
+        return actions.astype(np.float64)
+
+
+def load_module(path: str | Path) -> torch.nn.Module:
+    """A saved player's RLModule, in eval mode (``league.rllib_bridge.load_module``)."""
+    from league import rllib_bridge
+
+    return rllib_bridge.load_module(path)
 
 
 def policies_of(player: Player, run_dir: Path, load=None) -> dict[str, tuple[str, Policy]]:

@@ -38,11 +38,11 @@ from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.curves import plot_run
-from league.head_to_head import agents_of, evaluate_pairs, wilson_interval
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability
 from league.generations import GenerationLine, generation_lines, generations_plot
+from league.head_to_head import agents_of, evaluate_pairs
 from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
-from league.payoff import aggregate, attacker_won, league_ratings, wins_of
+from league.payoff import aggregate, attacker_won, league_ratings, wilson_interval, wins_of
 from league.players import Player
 from league.run_dir import RunDirError, open_run
 from league.store import LeagueStore

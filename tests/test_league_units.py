@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from league.config import CONFIG_DIR, ConfigError, RunConfig, load_config
-from league.head_to_head import wilson_interval
+from league.payoff import wilson_interval
 from envs.agents import Outcome
 from league.payoff import ATTACKER_WINS, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
 from league.players import Player
