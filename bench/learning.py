@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from league.evaluation import wilson_interval
+from league.payoff import wilson_interval
 from league.payoff import aggregate
 from league.store import LeagueStore
 

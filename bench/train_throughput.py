@@ -33,10 +33,10 @@ from envs.scenarios import evaluation_scenarios
 from envs.observations import split_policy_input
 from envs.scripted import ScriptedPlayer
 from league.config import RunConfig, load_config
-from league.evaluation import LearnedAgent, wilson_interval
-from league.payoff import attacker_won
+from league.head_to_head import LearnedAgent
+from league.payoff import attacker_won, wilson_interval
 from league.players import Player
-from league.rllib_bridge import MatchPlan, build_config, match_counts, set_trainable
+from league.rllib_bridge import MatchPlan, build_config, episode_outcomes, set_trainable
 
 from plain_ppo import train_plain  # bench/ beside this file
 
@@ -65,7 +65,7 @@ def train(run: RunConfig, env_steps: int, target: float, window: int) -> dict:
         result = algo.train()
         iterations += 1
         steps += result["env_runners"]["num_env_steps_sampled"]
-        for _, outcome, count in match_counts(result):
+        for _, outcome, count in episode_outcomes(result):
             recent.extend([attacker_won(outcome)] * count)
         if reached is None and len(recent) == window and np.mean(recent) >= target:
             reached = (time.perf_counter() - start, steps)

@@ -1,7 +1,9 @@
-"""Play whole games on the batched core: scripted tables, evaluation, rendering.
+"""Play whole games on the batched core: the scripted table, recorded trajectories for rendering.
 
-A *player* here is anything with ``act(game) -> (N, 2)`` actions for its agent:
-``envs.scripted.ScriptedPlayer``, or a learned policy wrapped by the caller.
+A *controller* picks one agent's actions: anything with ``act(game) -> (N, 2)``, such as
+``envs.scripted.ScriptedPlayer`` or a learned policy wrapped by the caller. The league's
+evaluation plays its games with the rollout (``league.rollout``), which gives the same
+outcomes on the same games (``tests/test_head_to_head.py``).
 
 ``python -m envs.match --episodes 1000`` prints the scripted-vs-scripted win rates.
 """
@@ -22,13 +24,15 @@ from envs.scenarios import SCENARIO_SETS, evaluation_scenarios
 from envs.scripted import PLAYERS, ScriptedPlayer
 
 
-class Player(Protocol):
+class Controller(Protocol):
+    """Picks the actions of one agent in every game of a batch."""
+
     def act(self, game: BatchedGame) -> np.ndarray: ...
 
 
 @dataclass
-class MatchResult:
-    """Per-game results of a batch played to the end."""
+class GameResults:
+    """Per-game results of a batch of games played to the end."""
 
     outcome: np.ndarray  # (N,) Outcome values
     steps: np.ndarray  # (N,) steps played
@@ -44,7 +48,7 @@ class MatchResult:
         return {o.label: int(np.sum(self.outcome == o)) for o in Outcome if o != Outcome.RUNNING}
 
 
-def play(config: GameConfig, players: dict[str, Player], positions: np.ndarray, record: bool = False) -> MatchResult:
+def play(config: GameConfig, players: dict[str, Controller], positions: np.ndarray, record: bool = False) -> GameResults:
     """Play one game per row of ``positions`` ``(N, 3, 3)`` until every game has ended."""
     game = BatchedGame(config, len(positions))
     game.reset(positions=positions)
@@ -58,10 +62,10 @@ def play(config: GameConfig, players: dict[str, Player], positions: np.ndarray, 
         attacker_returns += result.attacker_rewards
         if record:
             trajectory.append(game.positions.copy())
-    return MatchResult(game.outcome.copy(), game.steps.copy(), returns, trajectory, attacker_returns)
+    return GameResults(game.outcome.copy(), game.steps.copy(), returns, trajectory, attacker_returns)
 
 
-def scripted_players(attacker: str, targeter: str, defender: str) -> dict[str, Player]:
+def scripted_players(attacker: str, targeter: str, defender: str) -> dict[str, Controller]:
     return {
         "attacker": ScriptedPlayer("attacker", attacker),
         "targeter": ScriptedPlayer("targeter", targeter),

@@ -55,11 +55,16 @@ class TargetDefenseVectorEnv:
         self.core = BatchedGame(self.config, num_games)
         self.generators = [np.random.default_rng() for _ in range(num_games)]
 
-    def reset(self, seed: int | None = None) -> dict[str, np.ndarray]:
-        """Start every game; with ``seed``, game ``i``'s generator is seeded ``seed + i``."""
+    def reset(self, seed: int | None = None, positions: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Start every game; with ``seed``, game ``i``'s generator is seeded ``seed + i``; with
+        ``positions`` ``(N, 3, 3)``, game ``i`` starts from ``positions[i]`` (the fixed
+        evaluation games) and the generators are not drawn from."""
         if seed is not None:
             self.generators = [np.random.default_rng(seed + i) for i in range(self.num_games)]
-        return self.reset_games(np.arange(self.num_games))
+        if positions is None:
+            return self.reset_games(np.arange(self.num_games))
+        self.core.reset(positions=positions)
+        return self.observations()
 
     def reset_games(self, games: np.ndarray, agents: tuple[str, ...] = AGENTS) -> dict[str, np.ndarray]:
         """Start the games at indices ``games`` anew, each from its own generator; their observations

@@ -28,7 +28,7 @@ Differences, all for speed:
 ``sample_training_data`` is the fast path (``resources.sampler: fast``): the same play,
 but no episode objects at all; PPO's columns, with advantages and value targets by GAE
 over the arrays (``league.train_batch``), go straight to the Learner (``LeaguePPO``).
-Finished games still log their metrics and match; no episode callback is called.
+Finished games still log their metrics and outcome; no episode callback is called.
 Scripted players act on the games' exact state (as in evaluation), not on the float32
 global state that their RLModule decodes on the other paths.
 """
@@ -81,7 +81,7 @@ from ray.rllib.utils.metrics import (
 )
 
 RESET_INFOS: dict[str, dict] = {agent: {} for agent in AGENTS}  # what a reset returns as infos
-MATCHES_KEY = "league_matches"  # metrics key of the finished games by modules and outcome
+OUTCOMES_KEY = "league_outcomes"  # metrics key of the finished games by modules and outcome
 SEPARATOR = "|"
 
 
@@ -192,7 +192,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         """Step all games ``num_steps`` times, or until ``num_episodes`` have ended.
 
         Returns the episodes that ended (as ``MultiAgentEpisode``s if ``episodes``, else
-        none: their metrics and match are logged all the same), the rows and the steps played.
+        none: their metrics and outcomes are logged all the same), the rows and the steps played.
         """
         done_episodes: list[MultiAgentEpisode] = []
 
@@ -236,7 +236,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         """Every agent's action in every game: one forward pass per module.
 
         With ``on_core``, scripted players act on the games' exact state, as in evaluation
-        (``envs.match``), rather than on the float32 global state their module reads.
+        (``league.head_to_head``), rather than on the float32 global state their module reads.
         """
         if random_actions:
             actions = {}
@@ -335,14 +335,14 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         )
 
     def _game_ended(self, game: int, length: int, outcome: int) -> None:
-        """A finished game's metrics and match, without an episode object (the fast path)."""
+        """A finished game's metrics and outcome, without an episode object (the fast path)."""
         returns = dict(zip(AGENTS, self.rollout.returns[game].tolist()))
         modules = [self.rollout.module_ids[index] for index in self.rollout.modules[game]]
         module_returns: dict[str, float] = defaultdict(float)
         for agent, module_id in zip(AGENTS, modules):
             module_returns[module_id] += returns[agent]
         self._finished.append((length, returns, dict(module_returns), time.perf_counter() - self.rollout.started[game]))
-        log_match(self.metrics, modules, Outcome(outcome).label)
+        log_outcome(self.metrics, modules, Outcome(outcome).label)
 
     def _training_data(self, rows: Rows, t: int) -> dict[str, dict[str, np.ndarray]]:
         """Every trained module's PPO columns from rows ``0..t`` (see ``sample_training_data``)."""
@@ -421,9 +421,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 self.metrics.log_value((NUM_MODULE_STEPS_SAMPLED_LIFETIME, module_id), steps, reduce="lifetime_sum")
 
 
-def log_match(metrics: Any, modules: list[str], outcome: str) -> None:
+def log_outcome(metrics: Any, modules: list[str], outcome: str) -> None:
     """Count one finished game by its (attacker, targeter, defender) modules and outcome."""
-    metrics.log_value((MATCHES_KEY, SEPARATOR.join(modules), outcome), 1, reduce="sum")
+    metrics.log_value((OUTCOMES_KEY, SEPARATOR.join(modules), outcome), 1, reduce="sum")
 
 
 def _forward(module: Any, obs: torch.Tensor, explore: bool) -> dict[str, np.ndarray]:

@@ -1,4 +1,4 @@
-"""The training loop: phases, matches, snapshots, checkpoints, all recorded in the store.
+"""The training loop: phases, opponents, snapshots, checkpoints, all recorded in the store.
 
 One iteration: pick the learner's opponents by PFSP (``MatchPlan``), ``algo.train()``,
 record who played whom with which outcome, snapshot the learner when its phase ends,
@@ -6,6 +6,10 @@ checkpoint, and commit the iteration to the league database in one transaction.
 
 Which side learns in a phase, against whom, and when the phase ends is the run's
 schedule (``league.schedule``: the paper's protocol, or self-play).
+
+The run's lifecycle is here too: ``Coordinator.start`` (the first league members and
+checkpoint 0), ``Coordinator.resume`` (back to an intact checkpoint), ``train``, and
+``finish`` (the whole frozen league on the fixed games, ``evaluation.md``).
 """
 
 from __future__ import annotations
@@ -23,17 +27,19 @@ import numpy as np
 from league import rllib_bridge as bridge
 from league.config import RunConfig
 from league.curves import LearningCurves, Measurements
-from league.evaluation import EvaluationPool, PairResult, evaluate_pairs
+from league.evaluate import method_table
+from league.head_to_head import EvaluationPool, PairEvaluation, evaluate_pairs, format_table
 from league.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
 from league.pfsp import pfsp_probabilities
 from league.players import Player, other_side
 from league.progress import IterationTiming, ProgressReporter
-from league.run_dir import write_manifest
+from league.run_dir import record_config, write_manifest
 from league.schedule import PhaseState, schedule_of
 from league.stop import StopRequests
 from league.store import LeagueStore
 
 CHECKPOINTS_KEPT = 2
+EVALUATION_FILE = "evaluation.md"
 
 
 @dataclass
@@ -57,10 +63,6 @@ def phase_count(run: RunConfig) -> int:
     return schedule_of(run).phases
 
 
-def phase_side(run: RunConfig, index: int) -> str:
-    return schedule_of(run).side(index)
-
-
 class Coordinator:
     def __init__(
         self, run: RunConfig, run_dir: Path, store: LeagueStore, algo: Any, state: RunState, seed: int | None = None
@@ -79,6 +81,42 @@ class Coordinator:
         self.curves = LearningCurves(run, run_dir, lambda text: self.log(text))
         if state.rng:
             self.rng.bit_generator.state = state.rng
+
+    @classmethod
+    def start(cls, run: RunConfig, run_dir: Path, store: LeagueStore, check: Callable[[], None] = lambda: None) -> "Coordinator":
+        """A new run in a new store: the league's first members (the learners and the scripted
+        players), the algorithm, and checkpoint 0 committed (``begin``). ``check`` runs
+        before each commit (a stop request raises there)."""
+        with store.transaction():
+            record_config(store, run)
+            for method in run.attacker_methods:
+                store.add_player(0, side="attacker", kind="learner", version=0, reward_method=method)
+            store.add_player(0, side="team", kind="learner", version=0)
+            for name in run.league.scripted_attackers:
+                store.add_player(0, side="attacker", kind="scripted", version=0, scripted_attacker=name)
+            for team in run.league.scripted_teams:
+                store.add_player(
+                    0, side="team", kind="scripted", version=0, scripted_targeter=team.targeter, scripted_defender=team.defender
+                )
+        state = RunState(phase=PhaseState(index=0, side=schedule_of(run).side(0), start_iteration=0))
+        first_attacker = store.players(side="attacker", kind="learner")[0]
+        first_team = store.players(side="team", kind="scripted")[0]
+        plan = bridge.MatchPlan([first_attacker.modules()], [[first_team.modules()]], [[1.0]], run.seed)
+        algo = bridge.build_config(run, store.players(), plan).build_algo()
+        check()
+        coordinator = cls(run, run_dir, store, algo, state, seed=run.seed)
+        coordinator.begin(check)
+        return coordinator
+
+    @classmethod
+    def resume(cls, run: RunConfig, run_dir: Path, store: LeagueStore, iteration: int, checkpoint: str) -> "Coordinator":
+        """Back to the intact ``checkpoint`` of ``iteration``: the database rolled back to it, the
+        checkpoint directories it does not record (partial, damaged, later) removed."""
+        store.rollback_after(iteration)
+        prune_checkpoints(run_dir, store)
+        _, _, state_json = store.last_checkpoint()
+        algo = bridge.restore_algorithm(run_dir / checkpoint)
+        return cls(run, run_dir, store, algo, RunState.from_json(state_json))
 
     # ------------------------------------------------------------ league views
     def learners(self, side: str) -> list[Player]:
@@ -105,7 +143,7 @@ class Coordinator:
         )
 
     def learner_win_rates(self, learner: Player, opponents: list[Player]) -> list[float]:
-        table = aggregate(self.store.match_rows("training"))
+        table = aggregate(self.store.outcome_rows("training"))
         return [win_rate(*record_against(table, learner.side, learner.id, opponent.id)) for opponent in opponents]
 
     def match_plan(self) -> tuple[bridge.MatchPlan, dict[str, dict[str, float]]]:
@@ -187,14 +225,14 @@ class Coordinator:
         return rows, steps
 
     def commit(self, result: dict[str, Any], phase: PhaseState, rows: list[tuple[int, int, str, int]],
-               snapshots: list[dict[str, Any]], evaluation: list[PairResult], curves: Measurements, checkpoint: Path | None,
+               snapshots: list[dict[str, Any]], evaluation: list[PairEvaluation], curves: Measurements, checkpoint: Path | None,
                steps: int, seconds: float) -> None:
         """The iteration's one transaction: results, new snapshots, steps, ratings, the
         iteration's row (of ``phase``, the one it trained in) and, when one was written, its
         checkpoint with the run state."""
         st = self.state
         with self.store.transaction():
-            self.store.record_matches(st.iteration, "training", rows)
+            self.store.record_outcomes(st.iteration, "training", rows)
             for columns in snapshots:
                 self.store.add_player(st.iteration, **columns)
             for learner in self.store.players(kind="learner"):
@@ -234,7 +272,7 @@ class Coordinator:
         """``(attacker id, team id, outcome, count)`` of the episodes that ended in this iteration."""
         attackers, teams = self.module_players()
         rows = []
-        for (attacker_module, targeter_module, defender_module), outcome, count in bridge.match_counts(result):
+        for (attacker_module, targeter_module, defender_module), outcome, count in bridge.episode_outcomes(result):
             attacker = attackers[attacker_module]
             team = teams[(targeter_module, defender_module)]
             rows.append((attacker.id, team.id, outcome, count))
@@ -252,7 +290,7 @@ class Coordinator:
     def set_trainable(self, side: str) -> None:
         bridge.set_trainable(self.algo, [learner.name for learner in self.learners(side)])
 
-    def evaluate_learners(self, side: str) -> list[PairResult]:
+    def evaluate_learners(self, side: str) -> list[PairEvaluation]:
         """The side's learners, as they are now, against their opponents on the fixed games."""
         pairs = []
         for learner in self.learners(side):
@@ -328,10 +366,7 @@ class Coordinator:
         return final
 
     def prune_checkpoints(self) -> None:
-        kept = {self.run_dir / path for _, path in self.store.checkpoints()[-CHECKPOINTS_KEPT:]}
-        for directory in (self.run_dir / "checkpoints").glob("iter_*"):
-            if directory not in kept:
-                shutil.rmtree(directory, ignore_errors=True)
+        prune_checkpoints(self.run_dir, self.store)
 
     # ------------------------------------------------------------ whole run
     def train(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
@@ -342,3 +377,53 @@ class Coordinator:
             if stop:
                 stop.check()
             self.train_iteration(progress, stop)
+
+    def finish(self, progress: ProgressReporter, stop: StopRequests) -> None:
+        """The run's end: the whole frozen league evaluated (unless the last iteration's
+        evaluation is already recorded), the evaluation workers and the algorithm stopped."""
+        if self.store.get_meta("evaluated_iteration") != self.state.iteration:
+            self.evaluate_league(progress, stop)
+        if self.evaluation_pool is not None:
+            self.evaluation_pool.close()
+        self.algo.stop()
+
+    def evaluate_league(self, progress: ProgressReporter, stop: StopRequests) -> Path:
+        """Every frozen attacker against every frozen team on the fixed evaluation games:
+        recorded with refitted ratings, written to ``evaluation.md``."""
+        store, run = self.store, self.run
+        frozen = [p for p in store.players() if p.kind != "learner"]
+        attackers = [p for p in frozen if p.side == "attacker"]
+        teams = [p for p in frozen if p.side == "team"]
+        pairs = [(attacker, team) for attacker in attackers for team in teams]
+        ev = run.evaluation
+        with stop.interruptible():  # playing the games writes nothing
+            results = evaluate_pairs(
+                run.game, self.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker,
+                self.evaluation_pool, ev.custom_resources_per_worker, run.resources.torch_threads,
+            )
+        iteration = self.state.iteration
+        with store.transaction():
+            for r in results:
+                store.record_evaluation(iteration, r.outcome_rows())
+            store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
+            store.set_meta("evaluated_iteration", iteration)
+        out = self.run_dir / EVALUATION_FILE
+        partial = out.with_name(out.name + ".partial")
+        partial.write_text(
+            f"# Evaluation of {run.name} after iteration {iteration}\n\n"
+            f"{ev.episodes} fixed games of scenario set `{run.game.scenario}` per pair; "
+            "attacker win rate with its 95% Wilson interval.\n\n" + format_table(results)
+            + "\n## Per attacker reward method\n\n" + method_table(results)
+        )
+        partial.replace(out)
+        progress.evaluation(results, iteration)
+        progress.message(f"evaluation of {len(results)} pairs written to {out}")
+        return out
+
+
+def prune_checkpoints(run_dir: Path, store: LeagueStore, kept: int = CHECKPOINTS_KEPT) -> None:
+    """Remove every checkpoint directory but the newest ``kept`` the store records (partial ones too)."""
+    keep = {run_dir / path for _, path in store.checkpoints()[-kept:]}
+    for directory in (run_dir / "checkpoints").glob("iter_*"):
+        if directory not in keep:
+            shutil.rmtree(directory, ignore_errors=True)

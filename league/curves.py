@@ -41,10 +41,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from envs.match import MatchResult
+from envs.match import GameResults
 from envs.scripted import PLAYERS
 from league.config import RunConfig
-from league.evaluation import evaluate_pair, load_module, wilson_interval
+from league.head_to_head import evaluate_pair, load_module
+from league.payoff import wilson_interval
 from league.players import Player
 
 # Where a live learner's module is "loaded" from: it comes from the algorithm, not the disk.
@@ -69,7 +70,7 @@ class GameStats:
     mean_steps: float
 
     @staticmethod
-    def of(result: MatchResult) -> "GameStats":
+    def of(result: GameResults) -> "GameStats":
         by_method = result.attacker_returns.mean(axis=0)
         return GameStats(
             games=len(result.outcome),

@@ -4,7 +4,7 @@ Plays every chosen attacker against every chosen team on the fixed evaluation ga
 (frozen players only: snapshots and scripted players), prints win rates with 95% Wilson
 intervals and outcome counts, the table per attacker reward method, then the Nash
 equilibrium of the meta-game on these results (``league.nash``). Results go to
-the league database as evaluation matches of the run's last iteration, replacing earlier
+the league database as evaluation results of the run's last iteration, replacing earlier
 evaluations of the same pairs (the same fixed games again are one measurement, not new
 evidence), and the ratings of that iteration are refitted with them.
 """
@@ -17,9 +17,9 @@ from pathlib import Path
 
 import torch
 
-from league.evaluation import PairResult, evaluate_pairs, format_table, wilson_interval
+from league.head_to_head import PairEvaluation, evaluate_pairs, format_table
 from league.nash import format_meta_game, meta_game, meta_game_players
-from league.payoff import league_ratings
+from league.payoff import league_ratings, wilson_interval
 from league.players import Player
 from league.run_dir import RunDirError, open_run
 
@@ -33,7 +33,7 @@ def latest_by_method(players: list[Player]) -> dict[int, Player]:
     return latest
 
 
-def method_table(results: list[PairResult]) -> str:
+def method_table(results: list[PairEvaluation]) -> str:
     """Per attacker reward method (its newest snapshot): win rate against each kind of team."""
     attackers = latest_by_method([r.attacker for r in results])
     teams = sorted({r.team.id: r.team for r in results}.values(), key=lambda p: p.id)

@@ -20,7 +20,7 @@ import matplotlib.pyplot as plt
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from league.evaluation import wilson_interval
+from league.payoff import wilson_interval
 from league.players import Player
 
 SIDES = ("attacker", "team")

@@ -1,4 +1,4 @@
-"""Who wins, win rates and ratings from match results (rows of ``league.store``).
+"""Who wins, win rates (with Wilson intervals) and ratings from game outcomes (rows of ``league.store``).
 
 The one home of "who won": ``ATTACKER_WINS`` (the outcome labels the attacker wins, from
 ``envs.agents.Outcome.attacker_wins``) and the flip to one side's point of view
@@ -13,6 +13,7 @@ than the prior's 1000, which would read as a measured average).
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 
 import numpy as np
@@ -105,7 +106,21 @@ def aggregate(
     return {key: (w, n) for key, (w, n) in table.items()}
 
 
-def league_ratings(match_rows: list[tuple[int, int, str, int]], players: list[int]) -> dict[int, float]:
-    """Ratings from ``(attacker, team, outcome, count)`` rows (``LeagueStore.match_rows``)."""
-    table = aggregate(match_rows)
+def league_ratings(outcome_rows: list[tuple[int, int, str, int]], players: list[int]) -> dict[int, float]:
+    """Ratings from ``(attacker, team, outcome, count)`` rows (``LeagueStore.outcome_rows``)."""
+    table = aggregate(outcome_rows)
     return elo_ratings([(a, t, w, n) for (a, t), (w, n) in table.items()], players)
+
+
+Z_95 = 1.959963984540054
+
+
+def wilson_interval(wins: int, games: int, z: float = Z_95) -> tuple[float, float]:
+    """95% Wilson score interval of a win rate."""
+    if games == 0:
+        return (0.0, 1.0)
+    p = wins / games
+    denom = 1 + z * z / games
+    centre = (p + z * z / (2 * games)) / denom
+    half = z * math.sqrt(p * (1 - p) / games + z * z / (4 * games * games)) / denom
+    return (max(0.0, centre - half), min(1.0, centre + half))

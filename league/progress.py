@@ -24,7 +24,7 @@ from tensorboardX import SummaryWriter
 
 if TYPE_CHECKING:
     from league.schedule import PhaseState
-    from league.evaluation import PairResult
+    from league.head_to_head import PairEvaluation
 
 TRAIN_METRICS = ("policy_loss", "vf_loss", "entropy", "mean_kl_loss")
 
@@ -65,7 +65,7 @@ class ProgressReporter:
         steps: int,
         timing: IterationTiming,
         snapshots: list[str],
-        evaluation: list["PairResult"],
+        evaluation: list["PairEvaluation"],
     ) -> None:
         """Report ``iteration`` (``env_steps`` in all so far), trained in ``phase`` (as it stood after it).
 
@@ -103,7 +103,7 @@ class ProgressReporter:
         self.evaluation(evaluation, i)
         self.writer.flush()
 
-    def evaluation(self, results: list["PairResult"], iteration: int) -> None:
+    def evaluation(self, results: list["PairEvaluation"], iteration: int) -> None:
         """Attacker win rate of each evaluated pair, ``eval/ATTACKER_vs_TEAM``."""
         for r in results:
             self.scalar(f"eval/{r.attacker.name}_vs_{r.team.name}", r.attacker_wins / r.games, iteration)

@@ -38,11 +38,11 @@ from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.curves import plot_run
-from league.evaluation import agents_of, evaluate_pairs, wilson_interval
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability
 from league.generations import GenerationLine, generation_lines, generations_plot
+from league.head_to_head import agents_of, evaluate_pairs
 from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
-from league.payoff import aggregate, attacker_won, league_ratings, wins_of
+from league.payoff import aggregate, attacker_won, league_ratings, wilson_interval, wins_of
 from league.players import Player
 from league.run_dir import RunDirError, open_run
 from league.store import LeagueStore
@@ -70,7 +70,7 @@ class Episode:
 
     side: str
     label: str  # "won" or "lost"
-    matchup: str  # "ATTACKER vs TEAM (game G)"
+    pairing: str  # "ATTACKER vs TEAM (game G)"
     path: np.ndarray  # (steps + 1, 3 agents, 3) positions
     outcome: Outcome
 
@@ -110,7 +110,7 @@ def evaluation_payoff(store: LeagueStore, run: RunConfig, run_dir: Path, needed:
 def player_games(store: LeagueStore, payoff: dict[tuple[int, int], tuple[int, int]]) -> dict[int, int]:
     """Games per player: training episodes plus the newest evaluation of each pair (gaps filled now)."""
     games: dict[int, int] = defaultdict(int)
-    for table in (aggregate(store.match_rows("training")), payoff):
+    for table in (aggregate(store.outcome_rows("training")), payoff):
         for (attacker, team), (_, n) in table.items():
             games[attacker] += n
             games[team] += n
@@ -170,8 +170,8 @@ def record_episodes(run: RunConfig, run_dir: Path, attacker: Player, team: Playe
                            f"in {TRAJECTORY_GAMES} fixed games of {attacker.name} vs {team.name}.")
             continue
         g = int(games[0])
-        matchup = f"{attacker.name} vs {team.name} (game {g})"
-        episodes.append(Episode(side, label, matchup, paths[: int(result.steps[g]) + 1, g], Outcome(int(result.outcome[g]))))
+        pairing = f"{attacker.name} vs {team.name} (game {g})"
+        episodes.append(Episode(side, label, pairing, paths[: int(result.steps[g]) + 1, g], Outcome(int(result.outcome[g]))))
     return episodes, missing
 
 
@@ -409,7 +409,7 @@ def build_report(run_dir: Path) -> Path:
     figures = []
     for episode in data.episodes:
         name = f"trajectory_{episode.side}_{episode.label}.png"
-        plot_episode(episode.path, episode.outcome, run.game, f"{episode.matchup}: {episode.side} {episode.label}", out / name)
+        plot_episode(episode.path, episode.outcome, run.game, f"{episode.pairing}: {episode.side} {episode.label}", out / name)
         figures.append(name)
 
     text = [

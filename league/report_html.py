@@ -187,7 +187,7 @@ def trajectory_figure(episode: Episode, game: "GameConfig") -> go.Figure:
         dict(label="pause", method="animate", args=[[None], dict(mode="immediate", frame=dict(duration=0, redraw=False))]),
     ])
     fig.update_layout(
-        title=f"{episode.side} {episode.label}: {episode.outcome.label} after {steps} steps<br><sub>{episode.matchup}</sub>",
+        title=f"{episode.side} {episode.label}: {episode.outcome.label} after {steps} steps<br><sub>{episode.pairing}</sub>",
         scene=dict(xaxis=axes["x"], yaxis=axes["y"], zaxis=axes["z"], aspectmode="cube"),
         sliders=[slider], updatemenus=[play], height=620, margin=dict(l=0, r=0, t=70, b=0),
         legend=dict(x=0, y=1, font_size=10),

@@ -30,7 +30,7 @@ from envs.agents import AGENTS
 from envs.observations import observation_size
 from envs.rllib_env import TargetDefenseMultiAgentEnv, policy_input_space
 from envs.single import action_space
-from league.batched_env_runner import MATCHES_KEY, SEPARATOR, BatchedEnvRunner, log_match
+from league.batched_env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, log_outcome
 from league import rllib_compat as compat
 from league.config import RunConfig
 from league.modules import ActorCriticModule, ScriptedModule
@@ -166,12 +166,12 @@ class OutcomeRecorder(RLlibCallback):
     def on_episode_end(self, *, episode, metrics_logger=None, **kwargs) -> None:
         # Every agent's last info names the outcome (the batched sampler keeps only the learners').
         outcome = next(iter(episode.agent_episodes.values())).get_infos(-1)["outcome"]
-        log_match(metrics_logger, [episode.module_for(agent) for agent in AGENTS], outcome)
+        log_outcome(metrics_logger, [episode.module_for(agent) for agent in AGENTS], outcome)
 
 
-def match_counts(result: dict[str, Any]) -> list[tuple[tuple[str, str, str], str, int]]:
+def episode_outcomes(result: dict[str, Any]) -> list[tuple[tuple[str, str, str], str, int]]:
     """``((attacker, targeter, defender modules), outcome, count)`` of one ``train()`` result."""
-    counts = result.get(ENV_RUNNER_RESULTS, {}).get(MATCHES_KEY, {})
+    counts = result.get(ENV_RUNNER_RESULTS, {}).get(OUTCOMES_KEY, {})
     rows = []
     for modules, outcomes in counts.items():
         for outcome, count in outcomes.items():

@@ -8,14 +8,16 @@
 * each game's episode id, steps before its current chunk, running returns and start time;
 * the step loop (``play``): every game steps ``num_steps`` times, or until ``num_episodes``
   have ended; the actions come from one call per module (``act``), a game that ends is
-  reported (``on_game_end``) and restarted at once.
+  reported (``on_game_end``) and restarted at once (or, for evaluation's fixed games, left
+  as it ended).
 
 What the games produced goes into ``Rows``: arrays ``[row, game, ...]``. A module is played
 by a ``ModuleAct`` (observations in, actions and per-row outputs out: a network's forward
 pass) or, for scripted players, by ``ScriptedOnState`` (they act on the games' exact state).
 
 Used by the RLlib env runner (``league.batched_env_runner``, which turns the rows into
-episodes or PPO's training batch) and by the plain-PyTorch PPO bench (``bench/plain_ppo.py``);
+episodes or PPO's training batch), by evaluation (``league.head_to_head``: frozen players on
+the fixed games) and by the plain-PyTorch PPO bench (``bench/plain_ppo.py``);
 ``tests/test_rollout.py`` runs it without Ray.
 """
 
@@ -53,9 +55,16 @@ GameEnd = Callable[["Rows", int, int, int, int], None]
 
 
 class Rollout:
-    def __init__(self, games: TargetDefenseVectorEnv, module_for: Callable[[str, str], str]):
+    """``action_dtype``: of the actions the games are stepped with. The sampler hands RLlib
+    float32 actions; evaluation plays the scripted players' float64 actions unrounded, as
+    ``envs.match`` does."""
+
+    def __init__(
+        self, games: TargetDefenseVectorEnv, module_for: Callable[[str, str], str], action_dtype: Any = np.float32
+    ):
         self.games = games
         self.module_for = module_for
+        self.action_dtype = action_dtype
         n = games.num_games
         self.module_ids: list[str] = []  # modules of the games, indexed by `modules`
         self.modules = np.zeros((n, len(AGENTS)), dtype=np.int64)
@@ -69,9 +78,10 @@ class Rollout:
     def num_games(self) -> int:
         return self.games.num_games
 
-    def reset(self, seed: int | None) -> None:
-        """Start every game anew (from ``seed``, or where the games' generators are) with new episodes."""
-        self.observations = self.games.reset(seed=seed)
+    def reset(self, seed: int | None, positions: np.ndarray | None = None) -> None:
+        """Start every game anew with new episodes: from ``seed`` (or where the games' generators
+        are), or from the fixed start ``positions[i]`` of each game ``i``."""
+        self.observations = self.games.reset(seed=seed, positions=positions)
         self.module_ids = []
         self.modules[:] = 0
         self.episode_ids = [""] * self.num_games
@@ -105,19 +115,23 @@ class Rollout:
         act: Callable[["Rows", int], dict[str, np.ndarray]],
         on_game_end: GameEnd,
         observed: Callable[[], tuple[str, ...]] = lambda: AGENTS,
+        restart: bool = True,
     ) -> tuple["Rows", int, int, np.ndarray]:
-        """Step all games ``num_steps`` times, or until ``num_episodes`` have ended.
+        """Step all games ``num_steps`` times or until ``num_episodes`` have ended, whichever
+        comes first (``None``: no such limit).
 
         ``act(rows, t)`` gives every agent's actions ``(N, 2)`` before step ``t`` (see
         ``act_by_module``); ``observed()`` the agents whose observations the games compute.
-        Returns the rows, the steps played, the episodes ended and the steps each module
-        played (per index of ``module_ids``, one per game and agent).
+        With ``restart=False`` a game that ends is not started anew: it stays as it ended
+        (the core freezes it) and ends no more. Returns the rows, the steps played, the
+        episodes ended and the steps each module played (per index of ``module_ids``, one per
+        game and agent).
         """
         rows = Rows(self.observations, num_steps if num_steps is not None else EPISODE_ROWS)
         num_done = 0
         module_steps = np.zeros(len(self.module_ids), dtype=np.int64)
         t = 0
-        while (t < num_steps) if num_steps is not None else (num_done < num_episodes):
+        while (num_steps is None or t < num_steps) and (num_episodes is None or num_done < num_episodes):
             if t == rows.capacity:
                 rows.grow()
             actions = act(rows, t)
@@ -131,17 +145,18 @@ class Rollout:
                 num_done += len(ended)
                 for game in ended:
                     on_game_end(rows, game, rows.chunk_start[game], t, int(result.outcome[game]))
-                for game in ended:
-                    self.start_episode(game)
-                rows.restart(t, ended, self.games.reset_games(ended, observed()))
-                rows.chunk_start[ended] = t
+                if restart:
+                    for game in ended:
+                        self.start_episode(game)
+                    rows.restart(t, ended, self.games.reset_games(ended, observed()))
+                    rows.chunk_start[ended] = t
         self.observations = {agent: rows.observations[agent][t] for agent in AGENTS}
         return rows, t, num_done, module_steps
 
     def act_by_module(self, rows: "Rows", t: int, policy_of: Callable[[str], Policy]) -> dict[str, np.ndarray]:
         """Every agent's action in every game before step ``t``: one call per module over all
         the (game, agent) slots it plays; the modules' outputs go into ``rows``."""
-        actions = {agent: np.zeros((self.num_games, 2), dtype=np.float32) for agent in AGENTS}
+        actions = {agent: np.zeros((self.num_games, 2), dtype=self.action_dtype) for agent in AGENTS}
         for index in np.unique(self.modules):
             module_id = self.module_ids[index]
             players = [(agent, np.flatnonzero(self.modules[:, i] == index)) for i, agent in enumerate(AGENTS)]

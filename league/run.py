@@ -35,10 +35,7 @@ from pathlib import Path
 import yaml
 
 from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, load_config
-from league.coordinator import Coordinator, PhaseState, RunState, phase_count, phase_side
-from league.evaluate import method_table
-from league.evaluation import evaluate_pairs, format_table
-from league.payoff import league_ratings
+from league.coordinator import Coordinator, phase_count
 from league.progress import ProgressReporter
 from league.run_dir import (
     LOCK_FILE,
@@ -49,13 +46,10 @@ from league.run_dir import (
     is_disk_full,
     lock_run,
     open_run,
-    record_config,
     usable_checkpoints,
 )
 from league.stop import StopRequests, Stopped
 from league.store import DB_NAME, LeagueStore
-
-EVALUATION_FILE = "evaluation.md"
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -100,32 +94,11 @@ def start_ray(run: RunConfig, address: str | None) -> None:
 
 def new_run(run: RunConfig, run_dir: Path, stop: StopRequests) -> Coordinator:
     """Create the run and commit its first checkpoint; on any failure or stop, remove what was written."""
-    from league import rllib_bridge as bridge
-
     store = None
     try:
         (run_dir / RUN_CONFIG_FILE).write_text(yaml.safe_dump(run.model_dump(mode="json"), sort_keys=False))
         store = LeagueStore(run_dir, create=True)
-        with store.transaction():
-            record_config(store, run)
-            for method in run.attacker_methods:
-                store.add_player(0, side="attacker", kind="learner", version=0, reward_method=method)
-            store.add_player(0, side="team", kind="learner", version=0)
-            for name in run.league.scripted_attackers:
-                store.add_player(0, side="attacker", kind="scripted", version=0, scripted_attacker=name)
-            for team in run.league.scripted_teams:
-                store.add_player(
-                    0, side="team", kind="scripted", version=0, scripted_targeter=team.targeter, scripted_defender=team.defender
-                )
-        state = RunState(phase=PhaseState(index=0, side=phase_side(run, 0), start_iteration=0))
-        first_attacker = store.players(side="attacker", kind="learner")[0]
-        first_team = store.players(side="team", kind="scripted")[0]
-        plan = bridge.MatchPlan([first_attacker.modules()], [[first_team.modules()]], [[1.0]], run.seed)
-        algo = bridge.build_config(run, store.players(), plan).build_algo()
-        stop.check()
-        coordinator = Coordinator(run, run_dir, store, algo, state, seed=run.seed)
-        coordinator.begin(check=stop.check)
-        return coordinator
+        return Coordinator.start(run, run_dir, store, check=stop.check)
     except BaseException:
         if store is not None:
             store.close()
@@ -150,57 +123,16 @@ def intact_checkpoints(run_dir: Path, store: LeagueStore) -> tuple[list[tuple[in
 
 def resume_run(run_dir: Path, run: RunConfig, store: LeagueStore, say) -> Coordinator:
     """Restore the newest intact checkpoint; roll the database back to it."""
-    from league import rllib_bridge as bridge
-
     usable, problems = intact_checkpoints(run_dir, store)
     iteration, path = usable[0]
     last_committed = (store.last_iteration() or {}).get("iteration", 0)
-    store.rollback_after(iteration)
-    kept = {run_dir / p for _, p in store.checkpoints()}
-    for directory in (run_dir / "checkpoints").glob("iter_*"):
-        if directory not in kept:  # partial, damaged, or written after the last commit
-            shutil.rmtree(directory, ignore_errors=True)
+    coordinator = Coordinator.resume(run, run_dir, store, iteration, path)
     if problems:
         say(
             f"resuming from the checkpoint of iteration {iteration}, the newest intact one: {'; '.join(problems)}; "
             f"the league database was rolled back from iteration {last_committed} to {iteration}"
         )
-    _, _, state_json = store.last_checkpoint()
-    algo = bridge.restore_algorithm(run_dir / path)
-    return Coordinator(run, run_dir, store, algo, RunState.from_json(state_json))
-
-
-def evaluate_league(coordinator: Coordinator, progress: ProgressReporter, stop: StopRequests) -> Path:
-    """Every frozen attacker against every frozen team on the fixed evaluation games."""
-    store, run = coordinator.store, coordinator.run
-    frozen = [p for p in store.players() if p.kind != "learner"]
-    attackers = [p for p in frozen if p.side == "attacker"]
-    teams = [p for p in frozen if p.side == "team"]
-    pairs = [(attacker, team) for attacker in attackers for team in teams]
-    ev = run.evaluation
-    with stop.interruptible():  # playing the games writes nothing
-        results = evaluate_pairs(
-            run.game, coordinator.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker,
-            coordinator.evaluation_pool, ev.custom_resources_per_worker, run.resources.torch_threads,
-        )
-    iteration = coordinator.state.iteration
-    with store.transaction():
-        for r in results:
-            store.record_evaluation(iteration, r.outcome_rows())
-        store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
-        store.set_meta("evaluated_iteration", iteration)
-    out = coordinator.run_dir / EVALUATION_FILE
-    partial = out.with_name(out.name + ".partial")
-    partial.write_text(
-        f"# Evaluation of {run.name} after iteration {iteration}\n\n"
-        f"{run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair; "
-        "attacker win rate with its 95% Wilson interval.\n\n" + format_table(results)
-        + "\n## Per attacker reward method\n\n" + method_table(results)
-    )
-    partial.replace(out)
-    progress.evaluation(results, iteration)
-    progress.message(f"evaluation of {len(results)} pairs written to {out}")
-    return out
+    return coordinator
 
 
 def open_for_training(args: argparse.Namespace) -> tuple[RunConfig, Path, LeagueStore | None, object, bool]:
@@ -277,12 +209,8 @@ def main(argv: list[str] | None = None) -> int:
         )
         started = time.perf_counter()
         coordinator.train(progress, stop)
-        if coordinator.store.get_meta("evaluated_iteration") != coordinator.state.iteration:
-            evaluate_league(coordinator, progress, stop)
-        if coordinator.evaluation_pool is not None:
-            coordinator.evaluation_pool.close()
+        coordinator.finish(progress, stop)
         progress.message(f"done in {time.perf_counter() - started:.0f} s: {run_dir}")
-        coordinator.algo.stop()
         return 0
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)

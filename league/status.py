@@ -89,7 +89,7 @@ def run_line(store: LeagueStore) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m league.status", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
-    parser.add_argument("--source", choices=["training", "evaluation"], help="count only these matches")
+    parser.add_argument("--source", choices=["training", "evaluation"], help="count only these games")
     args = parser.parse_args(argv)
     try:
         _, store = open_run(args.run_dir)

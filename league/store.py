@@ -1,6 +1,6 @@
 """League state in SQLite (``league.db`` in the run directory): the single source of truth.
 
-The coordinator writes one transaction per iteration holding that iteration's match
+The coordinator writes one transaction per iteration holding that iteration's game
 results, new players, ratings, counters and, when it checkpointed, the checkpoint
 record; a kill mid-iteration therefore leaves the database at the previous iteration.
 On resume, rows of iterations after the last checkpoint are deleted
@@ -59,6 +59,7 @@ CREATE TABLE IF NOT EXISTS players (
     seed INTEGER,                    -- a best response's training seed
     env_step_budget INTEGER          -- a best response's training budget in env steps
 );
+-- games' outcomes by (attacker, team); the table keeps its first name so older databases open
 CREATE TABLE IF NOT EXISTS matches (
     iteration INTEGER NOT NULL,
     source TEXT NOT NULL,            -- 'training' or 'evaluation'
@@ -227,7 +228,7 @@ class LeagueStore:
         self.db.execute("UPDATE players SET env_steps = ? WHERE id = ?", (env_steps, player_id))
 
     # ---------------------------------------------------------------- results
-    def record_matches(self, iteration: int, source: str, rows: list[tuple[int, int, str, int]]) -> None:
+    def record_outcomes(self, iteration: int, source: str, rows: list[tuple[int, int, str, int]]) -> None:
         """``(attacker_id, team_id, outcome, count)`` rows."""
         self.db.executemany(
             "INSERT INTO matches VALUES (?, ?, ?, ?, ?, ?)",
@@ -248,7 +249,7 @@ class LeagueStore:
                 "OR NOT EXISTS (SELECT 1 FROM players WHERE id IN (?1, ?2) AND kind = 'learner'))",
                 (attacker, team, iteration),
             )
-        self.record_matches(iteration, "evaluation", rows)
+        self.record_outcomes(iteration, "evaluation", rows)
 
     def newest_evaluation_rows(self) -> list[tuple[int, int, str, int]]:
         """``(attacker, team, outcome, count)`` of each pair's newest evaluation."""
@@ -263,7 +264,7 @@ class LeagueStore:
     def counted_results(self, source: str | None = None) -> list[tuple[int, int, str, int]]:
         """``(attacker, team, outcome, count)`` with every game counted once: the training
         episodes and each pair's newest evaluation (``source`` picks one of the two)."""
-        training = self.match_rows("training") if source in (None, "training") else []
+        training = self.outcome_rows("training") if source in (None, "training") else []
         return training + (self.newest_evaluation_rows() if source in (None, "evaluation") else [])
 
     def training_rows_by_iteration(self) -> list[tuple[int, int, int, str, int]]:
@@ -273,7 +274,7 @@ class LeagueStore:
             "GROUP BY iteration, attacker, team, outcome ORDER BY iteration"
         ).fetchall()
 
-    def match_rows(self, source: str | None = None, since_iteration: int = 0) -> list[tuple[int, int, str, int]]:
+    def outcome_rows(self, source: str | None = None, since_iteration: int = 0) -> list[tuple[int, int, str, int]]:
         return self.db.execute(
             "SELECT attacker, team, outcome, SUM(count) FROM matches "
             "WHERE (?1 IS NULL OR source = ?1) AND iteration >= ?2 GROUP BY attacker, team, outcome",

@@ -10,7 +10,7 @@ from envs.agents import AGENTS
 from league.batched_env_runner import BatchedEnvRunner
 from league.config import RunConfig
 from league.players import Player
-from league.rllib_bridge import MatchPlan, build_config, match_counts, set_trainable
+from league.rllib_bridge import MatchPlan, build_config, episode_outcomes, set_trainable
 from ray.rllib.core.columns import Columns
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 
@@ -168,6 +168,6 @@ def test_training_on_batched_samples_counts_steps_matches_and_returns(algos):
     assert runners["num_module_steps_sampled"]["attacker-m2"] == runners["num_env_steps_sampled"]
     assert result["learners"]["attacker-m2"]["num_module_steps_trained"] > 0
     assert "attacker-m2" in runners["module_episode_returns_mean"]
-    played = match_counts(result)
+    played = episode_outcomes(result)
     assert played and all(modules == ("attacker-m2", *SCRIPTED_TEAM.modules().values()) for modules, _, _ in played)
     assert sum(count for _, _, count in played) == runners["num_episodes"]

@@ -14,8 +14,8 @@ from envs.agents import AGENTS
 from envs.config import GameConfig
 from envs.match import play, scripted_players
 from envs.scenarios import evaluation_scenarios
-from league.evaluation import LearnedAgent, load_module
 from league.export import main as export_main
+from league.head_to_head import LearnedAgent, load_module
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -7,7 +7,7 @@ import torch
 
 from league.config import RunConfig
 from league.players import Player
-from league.rllib_bridge import LeaguePPO, MatchPlan, build_config, match_counts, set_trainable
+from league.rllib_bridge import LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable
 from league.train_batch import gae
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
 from ray.rllib.core.columns import Columns
@@ -125,6 +125,6 @@ def test_a_fast_training_iteration_trains_the_learners_and_counts_matches(algo):
     assert runners["num_env_steps_sampled"] >= 300
     # One epoch over the attacker's 300 steps (50 steps of 6 games; it plays each env step once).
     assert result["learners"][ATTACKER.name]["num_module_steps_trained"] == 300
-    played = match_counts(result)
+    played = episode_outcomes(result)
     assert sum(count for _, _, count in played) == runners["num_episodes"] > 0
     assert {modules[1:] for modules, _, _ in played} <= {tuple(TEAM.modules().values()), tuple(SCRIPTED_TEAM.modules().values())}

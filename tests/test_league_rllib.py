@@ -7,7 +7,7 @@ import ray
 
 from league.config import RunConfig
 from league.players import Player
-from league.rllib_bridge import MatchPlan, build_config, learner_env_steps, match_counts, set_match_plan, set_trainable
+from league.rllib_bridge import MatchPlan, build_config, learner_env_steps, episode_outcomes, set_match_plan, set_trainable
 
 
 def trained(result, module):
@@ -51,7 +51,7 @@ def test_one_shared_team_policy_plays_and_learns_for_both_t_and_d(algo):
     env_steps = result["env_runners"]["num_env_steps_sampled"]
     assert learner_env_steps(result, [team, attacker]) == {"team": env_steps, "attacker-m2": 0}
     assert trained(result, "team") > 0 and trained(result, "attacker-m2") == 0
-    modules = {m for m, _, _ in match_counts(result)}
+    modules = {m for m, _, _ in episode_outcomes(result)}
     assert modules <= {("scripted-attacker-lead_intercept", "team", "team")} and modules
 
 
@@ -67,7 +67,7 @@ def test_switching_sides_trains_only_the_attacker(algo):
     algo.train()  # episodes begun under the old plan end here
     result = algo.train()
     assert trained(result, "attacker-m2") > 0 and trained(result, "team") == 0
-    played = {m for m, _, _ in match_counts(result)}
+    played = {m for m, _, _ in episode_outcomes(result)}
     assert ("attacker-m2", "scripted-targeter-avoid_attacker", "scripted-defender-pure_pursuit") in played
 
 
@@ -101,7 +101,7 @@ def test_snapshots_carry_the_learners_weights_into_sampling_files_and_checkpoint
     import numpy as np
     from ray.rllib.algorithms.algorithm import Algorithm
 
-    from league.evaluation import load_module
+    from league.head_to_head import load_module
     from league.rllib_bridge import add_snapshot, learner_weights, save_module
 
     run = RunConfig(name="wiring", ppo={"hidden": [16]})

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from league.config import CONFIG_DIR, ConfigError, RunConfig, load_config
-from league.evaluation import wilson_interval
+from league.payoff import wilson_interval
 from envs.agents import Outcome
 from league.payoff import ATTACKER_WINS, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
 from league.players import Player
@@ -231,14 +231,14 @@ def test_rollback_forgets_later_iterations(tmp_path):
         t = store.add_player(0, side="team", kind="learner", version=0)
     for iteration in (1, 2, 3):
         with store.transaction():
-            store.record_matches(iteration, "training", [(a.id, t.id, "captured", 2)])
+            store.record_outcomes(iteration, "training", [(a.id, t.id, "captured", 2)])
             store.record_iteration(iteration, phase=0, learner_side="team", env_steps=iteration, episodes=2 * iteration,
                                    steps_per_second=1.0, wall_seconds=1.0)
             if iteration == 2:
                 store.add_player(iteration, side="team", kind="snapshot", version=1, parent=t.id)
     store.rollback_after(1)
     assert store.iteration_count() == 1
-    assert store.match_rows() == [(a.id, t.id, "captured", 2)]
+    assert store.outcome_rows() == [(a.id, t.id, "captured", 2)]
     assert [p.kind for p in store.players()] == ["scripted", "learner"]
 
 

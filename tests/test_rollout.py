@@ -102,3 +102,21 @@ def test_each_episode_draws_its_modules_once_and_by_episode_count_the_rows_grow(
     for episode, modules in seen:  # the module of a whole episode is the one its id maps to
         expected = rollout.module_ids.index(by_episode("attacker", episode))
         assert set(modules) == {expected}
+
+
+def test_without_restarts_each_game_ends_once_and_stays_as_it_ended():
+    rollout = Rollout(games(), all_scripted)
+    by_hand = games()
+    by_hand.reset(seed=9)
+    positions = by_hand.core.positions.copy()
+    rollout.reset(seed=None, positions=positions)
+    np.testing.assert_array_equal(rollout.games.core.positions, positions)
+    ended = []
+    rows, t, num_done, _ = rollout.play(
+        None, GAMES, lambda rows, t: rollout.act_by_module(rows, t, scripted_policy),
+        on_game_end=lambda rows, game, first, end, outcome: ended.append((game, end, outcome)), restart=False,
+    )
+    assert num_done == GAMES and sorted(game for game, _, _ in ended) == list(range(GAMES))
+    assert t == max(end for _, end, _ in ended)  # the play stops when the last game ends
+    for game, end, outcome in ended:  # after its end a game's outcome and step count stay
+        assert (rows.outcome[end - 1 : t, game] == outcome).all() and (rows.steps[end - 1 : t, game] == end).all()

@@ -1,9 +1,10 @@
-"""Play frozen players against each other on the batched core (no RLlib sampling stack).
+"""Frozen players head to head on the fixed evaluation games, played by the rollout (no RLlib sampling stack).
 
 Learned players are RLModules loaded from their saved directories and run with plain
-torch forward passes (the Gaussian's mean, i.e. the deterministic action); scripted
-players are ``envs.scripted`` players. Every pair plays the same fixed seeded games
-(``envs.scenarios.evaluation_scenarios``).
+torch forward passes (the Gaussian's mean, i.e. the deterministic action), one per module
+and step over all its games (``league.rollout``); scripted players are ``envs.scripted``
+players acting on the games' exact state. Every pair plays the same fixed seeded games
+(``envs.scenarios.evaluation_scenarios``), each once, to its end.
 
 ``evaluate_pairs`` runs in this process, or spreads the pairs over ``EvaluationWorker``
 Ray actors (on any node of the cluster) in slices of the same fixed games; both give the
@@ -12,7 +13,6 @@ same numbers.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -23,37 +23,38 @@ import torch
 from envs.agents import AGENTS, Outcome
 from envs.config import GameConfig
 from envs.core import BatchedGame
-from envs.match import MatchResult, Player as AgentPlayer, play
+from envs.match import Controller, GameResults
 from envs.observations import policy_input
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import ScriptedPlayer
+from envs.vector_env import TargetDefenseVectorEnv
+from league.payoff import wilson_interval
 from league.players import Player
+from league.rollout import ModuleAct, Policy, Rollout, ScriptedOnState
 
-Z_95 = 1.959963984540054
+EVALUATION_CHUNK = 64  # steps per rollout play: bounds the rows kept, whatever the number of games
 
+def deterministic(module: torch.nn.Module) -> ModuleAct:
+    """A module's forward pass for the rollout: its deterministic action, no other outputs."""
 
-def wilson_interval(wins: int, games: int, z: float = Z_95) -> tuple[float, float]:
-    """95% Wilson score interval of a win rate."""
-    if games == 0:
-        return (0.0, 1.0)
-    p = wins / games
-    denom = 1 + z * z / games
-    centre = (p + z * z / (2 * games)) / denom
-    half = z * math.sqrt(p * (1 - p) / games + z * z / (4 * games * games)) / denom
-    return (max(0.0, centre - half), min(1.0, centre + half))
+    @torch.no_grad()
+    def act(obs: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        return module.deterministic_action(torch.from_numpy(obs)).numpy(), {}
+
+    return act
 
 
 class LearnedAgent:
-    """One agent driven by a saved RLModule's deterministic action."""
+    """One agent driven by a saved RLModule's deterministic action, as a controller of
+    ``envs.match.play`` (the report's recorded trajectories)."""
 
     def __init__(self, module: torch.nn.Module, agent: str):
-        self.module = module
+        self.forward = deterministic(module)
         self.index = AGENTS.index(agent)
 
-    @torch.no_grad()
     def act(self, game: BatchedGame) -> np.ndarray:
-        obs = policy_input(game.observations()[self.index], game.global_state())
-        return self.module.deterministic_action(torch.from_numpy(obs)).numpy().astype(np.float64)
+        actions, _ = self.forward(policy_input(game.observations()[self.index], game.global_state()))
+        return actions.astype(np.float64)
 
 
 def load_module(path: str | Path) -> torch.nn.Module:
@@ -63,8 +64,44 @@ def load_module(path: str | Path) -> torch.nn.Module:
     return rllib_bridge.load_module(path)
 
 
-def agents_of(player: Player, run_dir: Path, load=None) -> dict[str, AgentPlayer]:
-    """The per-agent players of a league member (``attacker`` or ``targeter``/``defender``)."""
+def policies_of(player: Player, run_dir: Path, load=None) -> dict[str, tuple[str, Policy]]:
+    """Module id and policy of each agent of a league member's side."""
+    modules = player.modules()
+    if player.kind == "scripted":
+        names = {
+            "attacker": player.scripted_attacker, "targeter": player.scripted_targeter, "defender": player.scripted_defender
+        }
+        return {agent: (module_id, ScriptedOnState(names[agent])) for agent, module_id in modules.items()}
+    if not player.checkpoint:
+        raise ValueError(f"player {player.name} has no saved module to evaluate")
+    act = deterministic((load or load_module)(run_dir / player.checkpoint))
+    return {agent: (module_id, act) for agent, module_id in modules.items()}
+
+
+def play_fixed_games(game: GameConfig, positions: np.ndarray, policies: dict[str, tuple[str, Policy]]) -> GameResults:
+    """One game from each start of ``positions`` ``(N, 3, 3)``, played to its end; ``policies``:
+    module id and policy of every agent."""
+    module_of = {agent: module_id for agent, (module_id, _) in policies.items()}
+    policy_of = {module_id: policy for module_id, policy in policies.values()}
+    observed = tuple(agent for agent, (_, policy) in policies.items() if not isinstance(policy, ScriptedOnState))
+    games = TargetDefenseVectorEnv({**game.model_dump(), "with_global_state": True}, len(positions))
+    rollout = Rollout(games, lambda agent, episode_id: module_of[agent], action_dtype=np.float64)
+    rollout.reset(seed=None, positions=positions)
+    attacker_returns = np.zeros((len(positions), 3))
+    while games.core.active.any():
+        rows, steps, _, _ = rollout.play(
+            EVALUATION_CHUNK, int(games.core.active.sum()),
+            act=lambda rows, t: rollout.act_by_module(rows, t, policy_of.__getitem__),
+            on_game_end=lambda *ended: None, observed=lambda: observed, restart=False,
+        )
+        for t in range(steps):  # summed step by step, as the returns are
+            attacker_returns += rows.attacker_rewards[t]
+    core = games.core
+    return GameResults(core.outcome.copy(), core.steps.copy(), rollout.returns.copy(), attacker_returns=attacker_returns)
+
+
+def agents_of(player: Player, run_dir: Path, load=None) -> dict[str, Controller]:
+    """The per-agent controllers of a league member (``attacker`` or ``targeter``/``defender``) for ``envs.match.play``."""
     if player.kind == "scripted":
         if player.side == "attacker":
             return {"attacker": ScriptedPlayer("attacker", player.scripted_attacker)}
@@ -80,10 +117,10 @@ def agents_of(player: Player, run_dir: Path, load=None) -> dict[str, AgentPlayer
 
 
 @dataclass
-class PairResult:
+class PairEvaluation:
     attacker: Player
     team: Player
-    result: MatchResult
+    result: GameResults
 
     @property
     def games(self) -> int:
@@ -99,14 +136,14 @@ class PairResult:
 
 def evaluate_pair(
     game: GameConfig, attacker: Player, team: Player, episodes: int, run_dir: Path, start: int = 0, load=None
-) -> PairResult:
+) -> PairEvaluation:
     """Games ``start .. start + episodes`` of the fixed evaluation set, ``attacker`` vs ``team``."""
-    players = {**agents_of(attacker, run_dir, load), **agents_of(team, run_dir, load)}
-    result = play(game, players, evaluation_scenarios(game.scenario, start + episodes)[start:])
-    return PairResult(attacker, team, result)
+    policies = {**policies_of(attacker, run_dir, load), **policies_of(team, run_dir, load)}
+    result = play_fixed_games(game, evaluation_scenarios(game.scenario, start + episodes)[start:], policies)
+    return PairEvaluation(attacker, team, result)
 
 
-def evaluate_here(game: GameConfig, run_dir: Path, pairs: list[tuple[Player, Player]], episodes: int) -> list[PairResult]:
+def evaluate_here(game: GameConfig, run_dir: Path, pairs: list[tuple[Player, Player]], episodes: int) -> list[PairEvaluation]:
     """Every pair on the first ``episodes`` fixed games, in this process."""
     return [evaluate_pair(game, a, t, episodes, run_dir) for a, t in pairs]
 
@@ -125,13 +162,13 @@ class EvaluationWorker:
     def play(
         self, attacker: Player, team: Player, start: int, episodes: int,
         attacker_module: torch.nn.Module | None = None, team_module: torch.nn.Module | None = None,
-    ) -> MatchResult:
+    ) -> GameResults:
         sent = {str(Path(p.checkpoint)): m for p, m in ((attacker, attacker_module), (team, team_module)) if m is not None}
         return evaluate_pair(self.game, attacker, team, episodes, Path(), start, lambda path: sent[str(path)]).result
 
 
-def merge(results: list[MatchResult]) -> MatchResult:
-    return MatchResult(
+def merge(results: list[GameResults]) -> GameResults:
+    return GameResults(
         np.concatenate([r.outcome for r in results]),
         np.concatenate([r.steps for r in results]),
         np.concatenate([r.returns for r in results]),
@@ -170,7 +207,7 @@ class EvaluationPool:
             self.sent[key] = ray.put(load_module(path))
         return self.sent[key]
 
-    def evaluate(self, pairs: list[tuple[Player, Player]], episodes: int) -> list[PairResult]:
+    def evaluate(self, pairs: list[tuple[Player, Player]], episodes: int) -> list[PairEvaluation]:
         import ray
 
         if not self.actors:
@@ -196,7 +233,7 @@ class EvaluationPool:
                         self.log(f"evaluation worker lost ({type(err).__name__}); {len(self.actors)} left")
                     self.log(f"replaying evaluation games {start}..{start + n - 1} of {a.name} vs {t.name} in the driver")
                     parts.append(evaluate_pair(self.game, a, t, n, self.run_dir, start).result)
-            results.append(PairResult(a, t, merge(parts)))
+            results.append(PairEvaluation(a, t, merge(parts)))
         return results
 
     def close(self) -> None:
@@ -216,7 +253,7 @@ def evaluate_pairs(
     pool: EvaluationPool | None = None,
     resources: dict[str, float] | None = None,
     torch_threads: int | None = None,
-) -> list[PairResult]:
+) -> list[PairEvaluation]:
     """Every pair on the first ``episodes`` fixed games: on ``pool``, on ``workers`` new actors, or here."""
     if pool is not None:
         return pool.evaluate(pairs, episodes)
@@ -229,7 +266,7 @@ def evaluate_pairs(
         pool.close()
 
 
-def format_table(results: list[PairResult]) -> str:
+def format_table(results: list[PairEvaluation]) -> str:
     """Markdown table: attacker win rate with its 95% Wilson interval and the outcomes."""
     lines = [
         "| attacker | team | games | attacker wins | 95% interval | "

@@ -1,14 +1,19 @@
-"""Evaluation workers, the evaluate and report command lines."""
+"""Evaluation on the rollout, its workers, the evaluate and report command lines."""
 
 import numpy as np
 import pytest
 import ray
+import torch
 
 from envs.config import GameConfig
 from envs.match import play, scripted_players
 from envs.scenarios import evaluation_scenarios
+from envs.scripted import PLAYERS, ScriptedPlayer
+from league.config import load_config
 from league.evaluate import main as evaluate_main
-from league.evaluation import evaluate_pairs
+from league.head_to_head import LearnedAgent, deterministic, evaluate_pairs, play_fixed_games
+from league.rllib_bridge import learner_spec
+from league.rollout import ScriptedOnState
 from league.players import Player
 from league.report import main as report_main
 
@@ -28,10 +33,45 @@ def test_workers_give_the_numbers_of_a_plain_loop(ray_instance, tmp_path):
     [by_workers] = evaluate_pairs(game, tmp_path, [(ATTACKER, TEAM)], 301, workers=3)
     plain = play(game, scripted_players("proportional_navigation", "straight", "bisector_intercept"),
                  evaluation_scenarios("default", 301))
-    np.testing.assert_array_equal(by_workers.result.outcome, plain.outcome)
-    np.testing.assert_array_equal(by_workers.result.steps, plain.steps)
-    np.testing.assert_allclose(by_workers.result.returns, plain.returns)
+    for field in ("outcome", "steps", "returns", "attacker_returns"):
+        np.testing.assert_array_equal(getattr(by_workers.result, field), getattr(plain, field))
     assert by_workers.games == 301
+
+
+def assert_same_games(rollout, plain):
+    """Bit for bit: both loops step the same core with the same actions, in the same order."""
+    for field in ("outcome", "steps", "returns", "attacker_returns"):
+        np.testing.assert_array_equal(getattr(rollout, field), getattr(plain, field), err_msg=field)
+
+
+@pytest.mark.parametrize("attacker", sorted(PLAYERS["attacker"]))
+def test_the_rollout_plays_the_fixed_games_as_the_plain_loop(attacker):
+    game, positions = GameConfig(), evaluation_scenarios("default", 300)
+    plain = play(game, scripted_players(attacker, "straight", "bisector_intercept"), positions)
+    rollout = play_fixed_games(game, positions, {
+        "attacker": ("a", ScriptedOnState(attacker)),
+        "targeter": ("t", ScriptedOnState("straight")),
+        "defender": ("d", ScriptedOnState("bisector_intercept")),
+    })
+    assert_same_games(rollout, plain)
+    assert len(set(plain.outcome.tolist())) > 1  # games that end in different ways
+
+
+def test_a_learned_team_plays_as_two_controllers_of_the_plain_loop():
+    # The rollout runs the team's module once per step over both agents' observations.
+    torch.manual_seed(0)
+    module = learner_spec(load_config("smoke"), "team").build().eval()
+    game, positions = GameConfig(), evaluation_scenarios("default", 300)
+    plain = play(game, {
+        "attacker": ScriptedPlayer("attacker", "lead_intercept"),
+        "targeter": LearnedAgent(module, "targeter"),
+        "defender": LearnedAgent(module, "defender"),
+    }, positions)
+    act = deterministic(module)
+    rollout = play_fixed_games(game, positions, {
+        "attacker": ("scripted", ScriptedOnState("lead_intercept")), "targeter": ("team", act), "defender": ("team", act),
+    })
+    assert_same_games(rollout, plain)
 
 
 def test_evaluation_is_deterministic_for_a_fixed_set(tmp_path):
