@@ -40,11 +40,11 @@ class PPOSettings(Strict):
     gamma: float = Field(0.99, gt=0, le=1)
     lambda_: float = Field(0.95, ge=0, le=1)
     team_gamma: float | None = Field(None, gt=0, le=1)
-    """Discount of the team learner (T and D); ``None``: ``gamma``. The team loses nearly every
-    game at first and its per-step rewards (Eq. 10, 11) are small next to a terminal reward, so
-    with ``gamma`` 0.99 a loss put off by ``k`` steps costs only ``0.99 ** k`` of one taken now:
-    the team learns to flee and stall instead of winning (README, "The team's learning").
-    Needs ``resources.sampler: fast`` (RLlib's own GAE has one discount for every module)."""
+    """Discount of the team learner (T and D); ``None``: ``gamma``. Against lead intercept the
+    team loses nearly every game at first and its per-step rewards (Eq. 10, 11) are small next to
+    a terminal reward, so with ``gamma`` 0.99 a loss put off by ``k`` steps costs only
+    ``0.99 ** k`` of one taken now: it learned to flee and stall instead of winning (README,
+    "The team's learning"). Needs ``resources.sampler: fast`` (RLlib's own GAE has one discount for every module)."""
     team_lambda_: float | None = Field(None, ge=0, le=1)
     """GAE ``lambda`` of the team learner; ``None``: ``lambda_``. Same sampler caveat."""
     clip_param: float = Field(0.2, gt=0)
