@@ -353,7 +353,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             if not self._is_trained(module_id):
                 continue
             module = self.module[module_id]
-            method = (module.model_config or {}).get("reward_method")
+            module_config = module.model_config or {}
+            method = module_config.get("reward_method")
+            gamma, lambda_ = module_config.get("gamma", config.gamma), module_config.get("lambda_", config.lambda_)
             for i, agent in enumerate(AGENTS):
                 played = rows.modules[:t, :, i] == index  # (t, G)
                 if not played.any():
@@ -368,7 +370,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                     rewards = rows.attacker_rewards[:t, :, method - 1]  # this module's reward method
                 else:
                     rewards = rows.rewards[agent][:t]
-                advantages, targets = gae(rewards, values[:t], values[t], ended, config.gamma, config.lambda_)
+                advantages, targets = gae(rewards, values[:t], values[t], ended, gamma, lambda_)
                 columns = {
                     Columns.OBS: obs[:t][played],
                     Columns.ACTIONS: rows.actions[agent][:t][played],

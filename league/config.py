@@ -39,6 +39,14 @@ class PPOSettings(Strict):
     lr: float = Field(3e-4, gt=0)
     gamma: float = Field(0.99, gt=0, le=1)
     lambda_: float = Field(0.95, ge=0, le=1)
+    team_gamma: float | None = Field(None, gt=0, le=1)
+    """Discount of the team learner (T and D); ``None``: ``gamma``. Against lead intercept the
+    team loses nearly every game at first and its per-step rewards (Eq. 10, 11) are small next to
+    a terminal reward, so with ``gamma`` 0.99 a loss put off by ``k`` steps costs only
+    ``0.99 ** k`` of one taken now: it learned to flee and stall instead of winning (README,
+    "The team's learning"). Needs ``resources.sampler: fast`` (RLlib's own GAE has one discount for every module)."""
+    team_lambda_: float | None = Field(None, ge=0, le=1)
+    """GAE ``lambda`` of the team learner; ``None``: ``lambda_``. Same sampler caveat."""
     clip_param: float = Field(0.2, gt=0)
     entropy_coeff: float = Field(0.0, ge=0)
     vf_loss_coeff: float = Field(0.5, ge=0)
@@ -48,6 +56,15 @@ class PPOSettings(Strict):
     num_epochs: int = Field(5, ge=1)
     hidden: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [64, 64], min_length=1)
     """Hidden layer sizes of both the policy and the value network."""
+
+    def discount(self, side: Side) -> tuple[float, float]:
+        """``(gamma, lambda)`` of the ``side`` learner."""
+        if side == "team":
+            return (
+                self.gamma if self.team_gamma is None else self.team_gamma,
+                self.lambda_ if self.team_lambda_ is None else self.team_lambda_,
+            )
+        return self.gamma, self.lambda_
 
 
 class Resources(Strict):
@@ -179,6 +196,11 @@ class RunConfig(Strict):
     def _check(self) -> "RunConfig":
         if self.ppo.minibatch_size > self.ppo.train_batch_size:
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
+        if self.ppo.discount("team") != self.ppo.discount("attacker") and self.resources.sampler != "fast":
+            raise ValueError(
+                "ppo.team_gamma and ppo.team_lambda_ need resources.sampler: fast "
+                "(RLlib's learner computes GAE with one gamma and lambda for every module)"
+            )
         return self
 
     @property

@@ -74,6 +74,7 @@ def actor_inputs(run: RunConfig, agent: str) -> int:
 
 def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) -> RLModuleSpec:
     agent = "attacker" if side == "attacker" else "targeter"
+    gamma, lambda_ = run.ppo.discount(side)
     return RLModuleSpec(
         module_class=ActorCriticModule,
         observation_space=policy_input_space(run.game, agent),
@@ -83,6 +84,9 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
             "critic": "local" if side == "attacker" else "global",
             "hidden": run.ppo.hidden,
             "reward_method": reward_method,
+            # The fast sampler's GAE reads them per module (the team's may differ: `PPOSettings.team_gamma`).
+            "gamma": gamma,
+            "lambda_": lambda_,
         },
     )
 

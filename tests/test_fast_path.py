@@ -44,18 +44,25 @@ def test_gae_cuts_at_game_ends_and_bootstraps_truncated_games():
     np.testing.assert_allclose(targets, expected + values, rtol=1e-12)
 
 
+# The team discounts differently from the attacker (`PPOSettings.team_gamma`): each module's GAE must use its own.
+RUN = RunConfig(
+    name="fast",
+    seed=3,
+    ppo={
+        "train_batch_size": 300, "minibatch_size": 100, "num_epochs": 1, "hidden": [16],
+        "team_gamma": 0.999, "team_lambda_": 0.8,
+    },
+    resources={"num_envs_per_env_runner": GAMES, "sampler": "fast"},
+)
+SIDES = {ATTACKER.name: ATTACKER.side, TEAM.name: TEAM.side}
+
+
 @pytest.fixture(scope="module")
 def algo():
     ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
-    run = RunConfig(
-        name="fast",
-        seed=3,
-        ppo={"train_batch_size": 300, "minibatch_size": 100, "num_epochs": 1, "hidden": [16]},
-        resources={"num_envs_per_env_runner": GAMES, "sampler": "fast"},
-    )
     # Half the games against the learning team, half against the scripted one: mixed matches.
     plan = MatchPlan([{"attacker": ATTACKER.name}], [[TEAM.modules(), SCRIPTED_TEAM.modules()]], [[1.0, 1.0]], seed=0)
-    built = build_config(run, [ATTACKER, TEAM, SCRIPTED_TEAM], plan).build_algo()
+    built = build_config(RUN, [ATTACKER, TEAM, SCRIPTED_TEAM], plan).build_algo()
     yield built
     built.stop()
     ray.shutdown()
@@ -80,16 +87,19 @@ def test_value_targets_and_advantages_are_those_of_rllibs_learner_connector(algo
     assert any(e.is_done for e in episodes) and any(not e.is_done for e in episodes)
 
     def connector_batch(learner):
-        # The pipeline PPO's Learner builds for itself (`PPOLearner.build`).
+        # The pipeline PPO's Learner builds for itself (`PPOLearner.build`), its GAE step run
+        # once per module with that module's discount (RLlib's GAE has one for all).
         pipeline = learner.config.build_learner_connector(None, None)
         pipeline.prepend(AddOneTsToEpisodesAndTruncate())
-        pipeline.append(GeneralAdvantageEstimation(gamma=learner.config.gamma, lambda_=learner.config.lambda_))
-        batch = pipeline(rl_module=learner.module, batch={}, episodes=episodes, shared_data={})
-        values = {m: learner.module[m].compute_values(batch[m]) for m in fast}
-        return {
-            m: {k: np.asarray(v.detach() if torch.is_tensor(v) else v) for k, v in {**batch[m], "values": values[m]}.items()}
-            for m in fast
-        }
+        shared = pipeline(rl_module=learner.module, batch={}, episodes=episodes, shared_data={})
+        columns = {}
+        for m in fast:
+            gamma, lambda_ = RUN.ppo.discount(SIDES[m])
+            fresh = {module_id: dict(data) for module_id, data in shared.items()}
+            batch = GeneralAdvantageEstimation(gamma=gamma, lambda_=lambda_)(rl_module=learner.module, batch=fresh, episodes=episodes)
+            values = learner.module[m].compute_values(batch[m])
+            columns[m] = {k: np.asarray(v.detach() if torch.is_tensor(v) else v) for k, v in {**batch[m], "values": values}.items()}
+        return columns
 
     [call] = algo.learner_group.foreach_learner(connector_batch)
     standard = call.get()

@@ -35,6 +35,9 @@ def write(tmp_path, text):
         ("seed: 1\n", "name"),
         ("name: x\nresources: {sampler: turbo}\n", "resources.sampler"),
         ("name: x\nevaluation: {custom_resources_per_worker: {evaluator: many}}\n", "custom_resources_per_worker"),
+        ("name: x\nppo: {team_gamma: 1.5}\n", "ppo.team_gamma"),
+        # RLlib's own GAE (batched and standard samplers) has one discount for every module.
+        ("name: x\nppo: {team_gamma: 0.999}\nresources: {sampler: batched}\n", "team_gamma"),
     ],
 )
 def test_invalid_config_names_the_key(tmp_path, text, key):
