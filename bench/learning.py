@@ -18,8 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from league.payoff import wilson_interval
-from league.payoff import aggregate
+from league.payoff import aggregate, wilson_interval
 from league.store import LeagueStore
 
 

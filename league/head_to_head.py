@@ -64,6 +64,13 @@ def load_module(path: str | Path) -> torch.nn.Module:
     return rllib_bridge.load_module(path)
 
 
+def saved_module(player: Player, run_dir: Path, load=None) -> torch.nn.Module:
+    """A learned league member's saved module (``load``: a stand-in for ``load_module``)."""
+    if not player.checkpoint:
+        raise ValueError(f"player {player.name} has no saved module to evaluate")
+    return (load or load_module)(run_dir / player.checkpoint)
+
+
 def policies_of(player: Player, run_dir: Path, load=None) -> dict[str, tuple[str, Policy]]:
     """Module id and policy of each agent of a league member's side."""
     modules = player.modules()
@@ -72,9 +79,7 @@ def policies_of(player: Player, run_dir: Path, load=None) -> dict[str, tuple[str
             "attacker": player.scripted_attacker, "targeter": player.scripted_targeter, "defender": player.scripted_defender
         }
         return {agent: (module_id, ScriptedOnState(names[agent])) for agent, module_id in modules.items()}
-    if not player.checkpoint:
-        raise ValueError(f"player {player.name} has no saved module to evaluate")
-    act = deterministic((load or load_module)(run_dir / player.checkpoint))
+    act = deterministic(saved_module(player, run_dir, load))
     return {agent: (module_id, act) for agent, module_id in modules.items()}
 
 
@@ -109,9 +114,7 @@ def agents_of(player: Player, run_dir: Path, load=None) -> dict[str, Controller]
             "targeter": ScriptedPlayer("targeter", player.scripted_targeter),
             "defender": ScriptedPlayer("defender", player.scripted_defender),
         }
-    if not player.checkpoint:
-        raise ValueError(f"player {player.name} has no saved module to evaluate")
-    module = (load or load_module)(run_dir / player.checkpoint)
+    module = saved_module(player, run_dir, load)
     agents = ("attacker",) if player.side == "attacker" else ("targeter", "defender")
     return {agent: LearnedAgent(module, agent) for agent in agents}
 
