@@ -115,23 +115,30 @@ def resumable(run_dir: Path) -> bool:
 
 
 def train(job: Job, log: Path | None) -> None:
-    """Train ``job`` to the end: skip it when finished, resume it when it has a checkpoint, else start it."""
-    if finished(job.run_dir):
-        print(f"reusing {job.run_dir} (finished)", flush=True)
+    """Train ``job`` to the end (``train_run``)."""
+    label = f"{job.variant}, {job.budget.describe()}, method {job.method}, seed {job.seed}"
+    train_run(f"attacker_method{job.method}", job.run_dir, job.overrides, label, log)
+
+
+def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | None = None) -> None:
+    """Train a ``league.run`` to the end: skip it when finished, resume it when it has a
+    checkpoint, else start it from ``config`` with ``overrides`` (``--set`` items)."""
+    if finished(run_dir):
+        print(f"reusing {run_dir} (finished)", flush=True)
         return
     out = open(log, "a") if log else None
     try:
-        if resumable(job.run_dir):
-            print(f"resuming {job.run_dir}", flush=True)
-            subprocess.run([sys.executable, "-m", "league.run", "--resume", str(job.run_dir)], stdout=out, stderr=out, check=True)
+        if resumable(run_dir):
+            print(f"resuming {run_dir}", flush=True)
+            subprocess.run([sys.executable, "-m", "league.run", "--resume", str(run_dir)], stdout=out, stderr=out, check=True)
             return
-        if job.run_dir.exists():  # killed before its first checkpoint: nothing to resume
-            lock_run(job.run_dir).release()  # refuses (RunDirError) while another process trains it
-            shutil.rmtree(job.run_dir)
-        command = [sys.executable, "-m", "league.run", "--config", f"attacker_method{job.method}", "--run-dir", str(job.run_dir)]
-        for item in job.overrides:
+        if run_dir.exists():  # killed before its first checkpoint: nothing to resume
+            lock_run(run_dir).release()  # refuses (RunDirError) while another process trains it
+            shutil.rmtree(run_dir)
+        command = [sys.executable, "-m", "league.run", "--config", config, "--run-dir", str(run_dir)]
+        for item in overrides:
             command += ["--set", item]
-        print(f"training {job.variant}, {job.budget.describe()}, method {job.method}, seed {job.seed} -> {job.run_dir}", flush=True)
+        print(f"training {label} -> {run_dir}", flush=True)
         subprocess.run(command, stdout=out, stderr=out, check=True)
     finally:
         if out:

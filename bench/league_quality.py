@@ -1,0 +1,182 @@
+"""Is the league any good? The issue-18 comparison: ``python bench/league_quality.py``.
+
+Trains one run per arm from ``configs/selfplay_league.yaml`` with the same game, PPO
+settings and env-step budget per side, then compares the final players of each side:
+
+| arm                | the team learns against                                    |
+| ------------------ | ---------------------------------------------------------- |
+| ``protocol``       | the frozen attacker of phase 1 (which learned against the scripted teams), one phase |
+| ``naive``          | the other side's newest snapshot only, phases in turn      |
+| ``league``         | PFSP over the other side's scripted players and snapshots  |
+| ``league-exploiters`` | as ``league``, with main exploiters (``league.exploiters``) |
+
+Every arm: method-2 attacker reward with a terminal reward of +-``--terminal-reward`` (so
+both sides learn to win), ``--phases`` alternating phases of ``--phase-env-steps``
+(``protocol``: two phases of half the total each), and phases that end only on their
+budget, so each side samples the same env steps in every arm.
+
+For each arm's final team (and final attacker): the win rate against every scripted player
+of the other side and every arm's final player of the other side on the same
+``--episodes`` fixed games (Wilson 95% intervals), and its exploitability: ``--seeds``
+best responses of ``--br-env-steps`` each (``league.exploit``; mean and bootstrap 95%
+interval over seeds). Writes ``OUT/league_quality.md``. Restarts reuse finished runs and
+best responses (and resume unfinished runs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from envs.scenarios import evaluation_scenarios
+from league.exploitability import exploitability
+from league.head_to_head import play_fixed_games, policies_of
+from league.payoff import wilson_interval
+from league.players import Player
+from league.reproduce import finished, train_run
+from league.run_dir import open_run
+
+ARMS = ("protocol", "naive", "league", "league-exploiters")
+
+
+def arm_overrides(arm: str, args: argparse.Namespace) -> list[str]:
+    common = [
+        "game.attacker_reward=2", f"game.terminal_reward={args.terminal_reward}", "league.attacker_reward_methods=[2]",
+        f"evaluation.episodes={args.episodes}", f"seed={args.seed}",
+    ]
+    per_side = args.phases // 2 * args.phase_env_steps
+    if arm == "protocol":
+        phases = [f"{{learner: attacker, env_steps: {per_side}, opponents: scripted}}",
+                  f"{{learner: team, env_steps: {per_side}, opponents: latest}}"]
+        return [*common, "league.mode=protocol", f"league.phases=[{', '.join(phases)}]"]
+    if arm == "naive":
+        phases = [f"{{learner: {'attacker' if i % 2 == 0 else 'team'}, env_steps: {args.phase_env_steps}, "
+                  f"opponents: {'scripted' if i == 0 else 'latest'}}}" for i in range(args.phases)]
+        return [*common, "league.mode=protocol", f"league.phases=[{', '.join(phases)}]"]
+    league = [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
+              f"league.phase_env_steps={args.phase_env_steps}", "league.snapshot_win_rate=1.0",
+              f"league.min_phase_episodes={10**9}"]  # a phase ends on its budget only
+    if arm == "league-exploiters":
+        league.append(f"league.exploiters=[{', '.join(args.exploiters)}]")
+    return league
+
+
+def final_player(players: list[Player], side: str) -> Player:
+    """The side's newest snapshot of its main learner (for attackers, the method-2 one)."""
+    snapshots = [p for p in players if p.side == side and p.kind == "snapshot" and p.reward_method in (None, 2)]
+    return max(snapshots, key=lambda p: p.version)
+
+
+def exploitability_of(run_dir: Path, player: Player, args: argparse.Namespace):
+    """Train the missing best responses against ``player`` (``league.exploit``), then read them all back."""
+    _, store = open_run(run_dir)
+    try:
+        done = [p for p in store.players(kind="best_response")
+                if p.parent == player.id and p.env_step_budget == args.br_env_steps]
+    finally:
+        store.close()
+    if len(done) < args.seeds:
+        print(f"exploiting {run_dir.name}/{player.name}: {args.seeds - len(done)} best response(s)", flush=True)
+        subprocess.run([sys.executable, "-m", "league.exploit", "--run-dir", str(run_dir), "--player", player.name,
+                        "--env-steps", str(args.br_env_steps), "--seeds", str(args.seeds - len(done)),
+                        "--episodes", str(args.episodes)], check=True)
+    _, store = open_run(run_dir)
+    try:
+        players = store.players()
+        found = [e for e in exploitability(players, store.newest_evaluation_rows())
+                 if e.exploited.id == player.id and e.budget == args.br_env_steps]
+    finally:
+        store.close()
+    return found[0]
+
+
+def win_cell(wins: int, games: int) -> str:
+    low, high = wilson_interval(wins, games)
+    return f"{wins / games:.3f} [{low:.2f}, {high:.2f}]"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", type=Path, default=Path("runs/league_quality"))
+    parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=ARMS)
+    parser.add_argument("--exploiters", nargs="+", default=["attacker", "team"], choices=["attacker", "team"],
+                        help="the sides with an exploiter in the league-exploiters arm")
+    parser.add_argument("--phases", type=int, default=6, help="alternating phases (even: both sides the same budget)")
+    parser.add_argument("--phase-env-steps", type=int, default=200_000)
+    parser.add_argument("--terminal-reward", type=float, default=30.0)
+    parser.add_argument("--br-env-steps", type=int, default=200_000, help="each best response's training budget")
+    parser.add_argument("--seeds", type=int, default=3, help="best responses per final player")
+    parser.add_argument("--episodes", type=int, default=1000, help="fixed evaluation games per pair")
+    parser.add_argument("--seed", type=int, default=0, help="the training runs' seed")
+    parser.add_argument("--sides", nargs="+", default=["team", "attacker"], choices=["team", "attacker"],
+                        help="whose exploitability to measure (teams first: the issue's headline)")
+    args = parser.parse_args(argv)
+    if args.phases < 2 or args.phases % 2 or min(args.phase_env_steps, args.br_env_steps, args.seeds, args.episodes) < 1:
+        parser.error("--phases must be even and at least 2; budgets, --seeds and --episodes at least 1")
+    args.out.mkdir(parents=True, exist_ok=True)
+    walls_file = args.out / "wall_times.json"
+    walls = json.loads(walls_file.read_text()) if walls_file.exists() else {}
+
+    finals: dict[str, dict[str, Player]] = {}
+    game = None
+    for arm in args.arms:
+        run_dir = args.out / arm
+        if not finished(run_dir):
+            started = time.perf_counter()
+            train_run("selfplay_league", run_dir, arm_overrides(arm, args), arm, args.out / f"{arm}.log")
+            walls[arm] = time.perf_counter() - started
+            walls_file.write_text(json.dumps(walls, indent=1))
+        run, store = open_run(run_dir)
+        try:
+            players = store.players()
+        finally:
+            store.close()
+        game = run.game
+        finals[arm] = {side: final_player(players, side) for side in ("attacker", "team")}
+        scripted = {side: [p for p in players if p.side == side and p.kind == "scripted"] for side in ("attacker", "team")}
+
+    positions = evaluation_scenarios(game.scenario, args.episodes)
+    lines = [
+        "# Is the league any good? (bench/league_quality.py)", "",
+        f"Settings: `selfplay_league.yaml`, method-2 attacker, terminal reward +-{args.terminal_reward:g}, "
+        f"{args.phases // 2 * args.phase_env_steps:,} env steps per side in every arm, run seed {args.seed}; "
+        f"{args.episodes} fixed evaluation games per pair (Wilson 95%); exploitability: {args.seeds} best responses "
+        f"of {args.br_env_steps:,} env steps each (mean, bootstrap 95% over seeds). Wall time per training run: "
+        + ", ".join(f"{arm} {walls[arm]:.0f} s" for arm in args.arms if arm in walls) + ".",
+    ]
+    for side in args.sides:
+        other = "attacker" if side == "team" else "team"
+        columns = [*scripted[other], *(finals[arm][other] for arm in args.arms)]
+        titles = [p.name.removeprefix("scripted-") for p in scripted[other]] + [f"{arm} {finals[arm][other].name}" for arm in args.arms]
+        lines += ["", f"## Final {side}s: win rate against the other side, and exploitability", "",
+                  f"| arm | {side} | env steps | " + " | ".join(titles) + " | exploitability (per seed) |",
+                  "| --- " * (len(titles) + 4) + "|"]
+        for arm in args.arms:
+            player = finals[arm][side]
+            cells = []
+            for opponent, home in zip(columns, [*[args.out / args.arms[0]] * len(scripted[other]), *(args.out / a for a in args.arms)]):
+                pair = {**policies_of(player, args.out / arm), **policies_of(opponent, home)}
+                result = play_fixed_games(game, positions, pair)
+                attacker_wins = int(result.attacker_wins.sum())
+                wins = attacker_wins if side == "attacker" else args.episodes - attacker_wins
+                cells.append(win_cell(wins, args.episodes))
+            found = exploitability_of(args.out / arm, player, args)
+            interval = found.interval()
+            seeds = ", ".join(f"{r.win_rate:.3f}" for r in found.results)
+            spread = f" [{interval[0]:.3f}, {interval[1]:.3f}]" if interval else ""
+            lines.append(f"| {arm} | {player.name} | {player.env_steps:,} | " + " | ".join(cells)
+                         + f" | {found.mean:.3f}{spread} ({seeds}) |")
+            print(lines[-1], flush=True)
+    (args.out / "league_quality.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
