@@ -149,8 +149,9 @@ class LeagueSettings(Strict):
     in the first phase its untrained version 0). It keeps training from phase to phase (no
     reset). At each phase end it is frozen like the learner (``team-exploiter-v1``, kind
     ``exploiter_snapshot``) into its side's pool, where the other side's learner meets it.
-    The phase-end rule counts the learners' games and env steps only, so a phase with
-    exploiters samples about twice the env steps."""
+    The phase-end rule leaves the exploiters' games and env steps out (it measures the
+    learners' progress as without exploiters), so a phase with exploiters samples about
+    twice the env steps."""
     scripted_attackers: list[str] = Field(default_factory=lambda: ["lead_intercept"])
     scripted_teams: list[ScriptedTeam] = Field(default_factory=lambda: [ScriptedTeam()])
 

@@ -9,7 +9,7 @@ the phase's ``MatchPlan`` (so it gets as many of the phase's games as each learn
 whose only opponents are the other side's newest snapshots (``current_opponents``); it
 is trained, snapshotted at the phase end and checkpointed like a learner. Its games do
 not count towards the phase's end (``count_played``), and it never enters a pool but as
-a frozen ``exploiter_snapshot``.
+a frozen ``exploiter_snapshot``. It keeps its weights from phase to phase (no reset).
 
 Which side learns in a phase, against whom, and when the phase ends is the run's
 schedule (``league.schedule``: the paper's protocol, or self-play).
@@ -240,8 +240,10 @@ class Coordinator:
         """Add this ``train()``'s episodes, wins and env steps to the run's and the phase's
         counts; returns its outcome rows and env steps.
 
-        The phase counts only its learners' games: an exploiter's games and env steps are
-        not progress towards ``snapshot_win_rate`` or the phase's env-step budget."""
+        An exploiter's games and env steps are not the phase's progress: the phase counts its
+        learners' wins and episodes, and every env step but the exploiters' (as without
+        exploiters, that includes the last games of the previous phase's side that end in
+        this phase's first iteration)."""
         st, phase = self.state, self.state.phase
         rows = self.outcome_rows(result)
         learner_ids = {p.id for p in self.learners(phase.side)}
