@@ -144,9 +144,10 @@ class LeagueSettings(Strict):
     exploiters: list[Side] = Field(default_factory=list)
     """Self-play mode: the sides that get exploiters (AlphaStar's main exploiters), e.g. ``[team]``,
     ``[attacker, team]``; empty: none. Each learner of a listed side gets an exploiter twin (same
-    side, same reward method) that trains in that side's phases, on half of the phase's games
-    (drawn per episode), against only the other side's newest snapshots (its current learner;
-    in the first phase its untrained version 0). It keeps training from phase to phase (no
+    side, same reward method) that trains in that side's phases on as many games as its learner
+    (drawn per episode: the exploiters together play half of the phase's games), against only
+    the other side's newest snapshots (its current learners; in the first phase the team's
+    untrained version 0). It keeps training from phase to phase (no
     reset). At each phase end it is frozen like the learner (``team-exploiter-v1``, kind
     ``exploiter_snapshot``) into its side's pool, where the other side's learner meets it.
     The phase-end rule leaves the exploiters' games and env steps out (it measures the
