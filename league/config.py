@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
 from envs.config import GameConfig
 from envs.scripted import PAPER_TEAM, PLAYERS
@@ -141,8 +141,29 @@ class LeagueSettings(Strict):
     """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat."""
     attacker_reward_methods: list[Literal[1, 2, 3]] | None = None
     """Train one attacker per listed reward method side by side; default: ``game.attacker_reward`` only."""
+    exploiters: list[Side] = Field(default_factory=list)
+    """Self-play mode: the sides that get exploiters (AlphaStar's main exploiters), e.g. ``[team]``,
+    ``[attacker, team]``; empty: none. Each learner of a listed side gets an exploiter twin (same
+    side, same reward method) that trains in that side's phases on as many games as its learner
+    (drawn per episode: the exploiters together play half of the phase's games), against only
+    the other side's newest snapshots (its current learners; in the first phase the team's
+    untrained version 0). It keeps training from phase to phase (no
+    reset). At each phase end it is frozen like the learner (``team-exploiter-v1``, kind
+    ``exploiter_snapshot``) into its side's pool, where the other side's learner meets it.
+    The phase-end rule leaves the exploiters' games and env steps out (it measures the
+    learners' progress as without exploiters), so a phase with exploiters samples about
+    twice the env steps."""
     scripted_attackers: list[str] = Field(default_factory=lambda: ["lead_intercept"])
     scripted_teams: list[ScriptedTeam] = Field(default_factory=lambda: [ScriptedTeam()])
+
+    @field_validator("exploiters")
+    @classmethod
+    def _exploiters_in_selfplay(cls, sides: list[str], info: ValidationInfo) -> list[str]:
+        if sides and info.data.get("mode") == "protocol":
+            raise ValueError("exploiters train in self-play only (mode: selfplay); leave league.exploiters empty in protocol mode")
+        if len(set(sides)) != len(sides):
+            raise ValueError("league.exploiters must list each side at most once")
+        return sides
 
     @model_validator(mode="after")
     def _check(self) -> "LeagueSettings":

@@ -4,6 +4,13 @@ One iteration: pick the learner's opponents by PFSP (``MatchPlan``), ``algo.trai
 record who played whom with which outcome, snapshot the learner when its phase ends,
 checkpoint, and commit the iteration to the league database in one transaction.
 
+Exploiters (``league.exploiters``) ride the same path: an exploiter is one more entry of
+the phase's ``MatchPlan`` (so it gets as many of the phase's games as each learner),
+whose only opponents are the other side's newest snapshots (``current_opponents``); it
+is trained, snapshotted at the phase end and checkpointed like a learner. Its games do
+not count towards the phase's end (``count_played``), and it never enters a pool but as
+a frozen ``exploiter_snapshot``. It keeps its weights from phase to phase (no reset).
+
 Which side learns in a phase, against whom, and when the phase ends is the run's
 schedule (``league.schedule``: the paper's protocol, or self-play).
 
@@ -31,7 +38,7 @@ from league.evaluate import method_table
 from league.head_to_head import EvaluationPool, PairEvaluation, evaluate_pairs, format_table
 from league.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
 from league.pfsp import pfsp_probabilities
-from league.players import Player, other_side
+from league.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
 from league.progress import IterationTiming, ProgressReporter
 from league.run_dir import record_config, write_manifest
 from league.schedule import PhaseState, schedule_of
@@ -87,11 +94,14 @@ class Coordinator:
         """A new run in a new store: the league's first members (the learners and the scripted
         players), the algorithm, and checkpoint 0 committed (``begin``). ``check`` runs
         before each commit (a stop request raises there)."""
+        learners = [("attacker", method) for method in run.attacker_methods] + [("team", None)]
         with store.transaction():
             record_config(store, run)
-            for method in run.attacker_methods:
-                store.add_player(0, side="attacker", kind="learner", version=0, reward_method=method)
-            store.add_player(0, side="team", kind="learner", version=0)
+            for side, method in learners:
+                store.add_player(0, side=side, kind="learner", version=0, reward_method=method)
+            for side, method in learners:  # each learner of a side with exploiters gets its twin
+                if side in run.league.exploiters:
+                    store.add_player(0, side=side, kind="exploiter", version=0, reward_method=method)
             for name in run.league.scripted_attackers:
                 store.add_player(0, side="attacker", kind="scripted", version=0, scripted_attacker=name)
             for team in run.league.scripted_teams:
@@ -122,6 +132,13 @@ class Coordinator:
     def learners(self, side: str) -> list[Player]:
         return self.store.players(side=side, kind="learner")
 
+    def exploiters(self, side: str) -> list[Player]:
+        return self.store.players(side=side, kind="exploiter")
+
+    def trainees(self, side: str | None = None) -> list[Player]:
+        """Every player whose module trains (learners and exploiters), of ``side`` or of both sides."""
+        return [p for p in self.store.players(side=side) if p.trains]
+
     def module_players(self) -> tuple[dict[str, Player], dict[tuple[str, str], Player]]:
         """Players by attacker module, and team players by (targeter, defender) module."""
         attackers, teams = {}, {}
@@ -139,25 +156,39 @@ class Coordinator:
         return self.schedule.opponents(
             self.state.phase.index,
             self.store.players(side=pool_side, kind="scripted"),
-            self.store.players(side=pool_side, kind="snapshot"),
+            [p for p in self.store.players(side=pool_side) if p.kind in POOL_KINDS],  # oldest first
         )
+
+    def current_opponents(self, side: str) -> list[Player]:
+        """The other side's learners as they are now, the only opponents of the ``side`` exploiters:
+        each one's newest snapshot. The other side does not train in this phase, and its newest
+        snapshot was taken when it last stopped (version 0, its untrained policy, before its first phase)."""
+        newest: dict[int, Player] = {}
+        for snapshot in self.store.players(side=other_side(side), kind="snapshot"):  # oldest first
+            newest[snapshot.parent] = snapshot  # by lineage: the learner it was frozen from
+        return list(newest.values())
 
     def learner_win_rates(self, learner: Player, opponents: list[Player]) -> list[float]:
         table = aggregate(self.store.outcome_rows("training"))
         return [win_rate(*record_against(table, learner.side, learner.id, opponent.id)) for opponent in opponents]
 
     def match_plan(self) -> tuple[bridge.MatchPlan, dict[str, dict[str, float]]]:
-        """This iteration's plan, and each learner's PFSP probability per opponent name."""
+        """This iteration's plan, and each learner's PFSP probability per opponent name.
+
+        The side's exploiters join the plan as further entries with the other side's current
+        learners as their only, equally likely, opponents."""
         side = self.state.phase.side
         learners = self.learners(side)
         opponents = self.candidates(side)
         probabilities = [
             pfsp_probabilities(self.learner_win_rates(learner, opponents), self.run.league.pfsp) for learner in learners
         ]
+        exploiters = self.exploiters(side)
+        targets = self.current_opponents(side) if exploiters else []
         plan = bridge.MatchPlan(
-            learners=[learner.modules() for learner in learners],
-            opponents=[[o.modules() for o in opponents]] * len(learners),
-            probabilities=[p.tolist() for p in probabilities],
+            learners=[player.modules() for player in learners + exploiters],
+            opponents=[[o.modules() for o in opponents]] * len(learners) + [[t.modules() for t in targets]] * len(exploiters),
+            probabilities=[p.tolist() for p in probabilities] + [[1.0] * len(targets)] * len(exploiters),
             seed=int(self.rng.integers(2**31)),
         )
         weights = {
@@ -193,13 +224,13 @@ class Coordinator:
         trained_phase = replace(phase)  # this iteration's phase, before a phase change
         snapshots = []
         if self.schedule.finished(phase):
-            snapshots = [self.snapshot(learner) for learner in self.learners(phase.side)]
+            snapshots = [self.snapshot(trainee) for trainee in self.trainees(phase.side)]
             self.next_phase()
         due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
         checkpoint = self.checkpoint() if due else None
         self.commit(result, trained_phase, rows, snapshots, evaluation, curves, checkpoint, steps, seconds)
         self.prune_checkpoints()
-        learner_names = [p.name for p in self.store.players(kind="learner")]
+        learner_names = [p.name for p in self.trainees()]
         progress.iteration(
             st.iteration, st.env_steps, len(self.store.players()), bridge.learner_stats(result, learner_names), weights,
             trained_phase, steps, timing, [self.store_name(c) for c in snapshots], evaluation,
@@ -207,7 +238,12 @@ class Coordinator:
 
     def count_played(self, result: dict[str, Any]) -> tuple[list[tuple[int, int, str, int]], int]:
         """Add this ``train()``'s episodes, wins and env steps to the run's and the phase's
-        counts; returns its outcome rows and env steps."""
+        counts; returns its outcome rows and env steps.
+
+        An exploiter's games and env steps are not the phase's progress: the phase counts its
+        learners' wins and episodes, and every env step but the exploiters' (as without
+        exploiters, that includes the last games of the previous phase's side that end in
+        this phase's first iteration)."""
         st, phase = self.state, self.state.phase
         rows = self.outcome_rows(result)
         learner_ids = {p.id for p in self.learners(phase.side)}
@@ -219,9 +255,10 @@ class Coordinator:
         total_steps = bridge.sampled_env_steps(result)
         steps = total_steps - st.env_steps
         st.env_steps = total_steps
-        phase.env_steps += steps
-        for name, played in bridge.learner_env_steps(result, self.store.players(kind="learner")).items():
+        trainee_steps = bridge.learner_env_steps(result, self.trainees())
+        for name, played in trainee_steps.items():
             st.learner_env_steps[name] = st.learner_env_steps.get(name, 0) + played
+        phase.env_steps += steps - sum(trainee_steps[p.name] for p in self.store.players(kind="exploiter"))
         return rows, steps
 
     def commit(self, result: dict[str, Any], phase: PhaseState, rows: list[tuple[int, int, str, int]],
@@ -235,8 +272,8 @@ class Coordinator:
             self.store.record_outcomes(st.iteration, "training", rows)
             for columns in snapshots:
                 self.store.add_player(st.iteration, **columns)
-            for learner in self.store.players(kind="learner"):
-                self.store.set_player_steps(learner.id, st.learner_env_steps.get(learner.name, 0))
+            for trainee in self.trainees():
+                self.store.set_player_steps(trainee.id, st.learner_env_steps.get(trainee.name, 0))
             for r in evaluation:
                 self.store.record_evaluation(st.iteration, r.outcome_rows())
             self.curves.record(self.store, st.iteration, curves)
@@ -249,7 +286,7 @@ class Coordinator:
                 episodes=st.episodes,
                 steps_per_second=steps / seconds,
                 wall_seconds=seconds,
-                returns=json.dumps(bridge.module_returns(result, [p.name for p in self.store.players(kind="learner")])),
+                returns=json.dumps(bridge.module_returns(result, [p.name for p in self.trainees()])),
             )
             st.rng = self.rng.bit_generator.state
             if checkpoint is not None:
@@ -288,7 +325,7 @@ class Coordinator:
         self.set_trainable(side)
 
     def set_trainable(self, side: str) -> None:
-        bridge.set_trainable(self.algo, [learner.name for learner in self.learners(side)])
+        bridge.set_trainable(self.algo, [trainee.name for trainee in self.trainees(side)])
 
     def evaluate_learners(self, side: str) -> list[PairEvaluation]:
         """The side's learners, as they are now, against their opponents on the fixed games."""
@@ -327,24 +364,27 @@ class Coordinator:
     def store_name(columns: dict[str, Any]) -> str:
         return Player(id=-1, **columns).name
 
-    def snapshot(self, learner: Player) -> dict[str, Any]:
-        """Freeze a learner as a new league member; returns its player columns."""
-        side = learner.side
-        versions = [p.version for p in self.store.players(side=side, kind="snapshot") if p.reward_method == learner.reward_method]
-        version = 1 + max(versions, default=-1)
-        player = Player(id=-1, side=side, kind="snapshot", version=version, reward_method=learner.reward_method)
-        bridge.add_snapshot(self.algo, self.run, player, learner.name)
+    def snapshot(self, trainee: Player) -> dict[str, Any]:
+        """Freeze a learner or an exploiter as a new league member; returns its player columns.
+
+        A learner's versions start at 0 (its untrained policy, frozen by ``begin``); an
+        exploiter's at 1, after its first phase: its untrained policy never joins the pool."""
+        side, kind = trainee.side, SNAPSHOT_KIND[trainee.kind]
+        versions = [p.version for p in self.store.players(side=side, kind=kind) if p.reward_method == trainee.reward_method]
+        version = 1 + max(versions, default=-1 if kind == "snapshot" else 0)
+        player = Player(id=-1, side=side, kind=kind, version=version, reward_method=trainee.reward_method)
+        bridge.add_snapshot(self.algo, self.run, player, trainee.name)
         path = self.run_dir / "players" / player.name
         if path.exists():  # left over by a run killed before it committed this snapshot
             shutil.rmtree(path)
         bridge.save_module(self.algo, player.name, path)
         return {
             "side": side,
-            "kind": "snapshot",
+            "kind": kind,
             "version": version,
-            "reward_method": learner.reward_method,
-            "parent": learner.id,
-            "env_steps": self.state.learner_env_steps.get(learner.name, 0),
+            "reward_method": trainee.reward_method,
+            "parent": trainee.id,
+            "env_steps": self.state.learner_env_steps.get(trainee.name, 0),
             "checkpoint": str(path.relative_to(self.run_dir)),
         }
 
@@ -391,7 +431,7 @@ class Coordinator:
         """Every frozen attacker against every frozen team on the fixed evaluation games:
         recorded with refitted ratings, written to ``evaluation.md``."""
         store, run = self.store, self.run
-        frozen = [p for p in store.players() if p.kind != "learner"]
+        frozen = [p for p in store.players() if not p.trains]
         attackers = [p for p in frozen if p.side == "attacker"]
         teams = [p for p in frozen if p.side == "team"]
         pairs = [(attacker, team) for attacker in attackers for team in teams]

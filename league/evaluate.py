@@ -1,8 +1,8 @@
 """Evaluate a league: ``python -m league.evaluate --run-dir DIR [--episodes N] [--players ...]``.
 
 Plays every chosen attacker against every chosen team on the fixed evaluation games
-(frozen players only: snapshots and scripted players), prints win rates with 95% Wilson
-intervals and outcome counts, the table per attacker reward method, then the Nash
+(frozen players only: snapshots, exploiter snapshots and scripted players), prints win
+rates with 95% Wilson intervals and outcome counts, the table per attacker reward method, then the Nash
 equilibrium of the meta-game on these results (``league.nash``). Results go to
 the league database as evaluation results of the run's last iteration, replacing earlier
 evaluations of the same pairs (the same fixed games again are one measurement, not new
@@ -57,7 +57,7 @@ def method_table(results: list[PairEvaluation]) -> str:
 
 
 def choose(players: list[Player], names: list[str] | None) -> list[Player]:
-    frozen = [p for p in players if p.kind != "learner"]
+    frozen = [p for p in players if not p.trains]
     if not names:
         return frozen
     by_name = {p.name: p for p in frozen}

@@ -32,7 +32,7 @@ from torch import nn
 
 from envs.observations import split_policy_input
 from envs.single import action_space, observation_space
-from league.players import Player
+from league.players import POOL_KINDS, Player
 from league.run_dir import RunDirError, open_run
 from league.store import LeagueStore
 
@@ -67,10 +67,10 @@ def resolve_player(store: LeagueStore, spec: str) -> Player:
         return snapshots[-1]
     chosen = [p for p in players if str(p.id) == spec or p.name == spec]
     if not chosen:
-        known = ", ".join(p.name for p in players if p.kind == "snapshot")
+        known = ", ".join(p.name for p in players if p.kind in POOL_KINDS)
         raise ExportError(f"no player {spec!r} in the league (snapshots: {known})")
-    if chosen[0].kind != "snapshot":
-        raise ExportError(f"player {spec!r} is {chosen[0].kind}: only snapshots have a saved policy to export")
+    if chosen[0].kind not in POOL_KINDS:
+        raise ExportError(f"player {spec!r} is {chosen[0].kind}: only snapshots (and exploiter snapshots) have a saved policy to export")
     return chosen[0]
 
 

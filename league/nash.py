@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from league.payoff import ATTACKER_WINS, aggregate
-from league.players import Player
+from league.players import POOL_KINDS, Player
 
 # HiGHS's default primal and dual feasibility tolerances are 1e-7; a weight below ten
 # times that is solver noise around zero, not part of the mixture.
@@ -135,8 +135,9 @@ META_GAME_NOTE = (
 
 
 def meta_game_players(players: list[Player]) -> tuple[list[Player], list[Player]]:
-    """The league's frozen attackers and teams: snapshots and scripted players (not learners or best responses)."""
-    frozen = [p for p in players if p.kind in ("snapshot", "scripted")]
+    """The league's frozen attackers and teams: snapshots, exploiter snapshots and scripted players
+    (not learners, exploiters or best responses)."""
+    frozen = [p for p in players if p.kind in (*POOL_KINDS, "scripted")]
     return [p for p in frozen if p.side == "attacker"], [p for p in frozen if p.side == "team"]
 
 

@@ -8,7 +8,13 @@ derived from its columns, never parsed back from names.
 | learner    | the side's learning module (``attacker`` or ``team``)  | yes     |
 | snapshot   | a frozen copy of a learner at some iteration           | no      |
 | scripted   | a scripted player of ``envs.scripted``                 | no      |
+| exploiter  | the side's exploiter (``league.exploiters``): trains in its side's phases against the other side's newest snapshots only | yes |
+| exploiter_snapshot | a frozen copy of an exploiter, in its side's pool like a snapshot | no |
 | best_response | trained from scratch against one frozen player (its ``parent``) by ``league.exploit``; not in the training pool | no (frozen once trained) |
+
+Names: ``attacker-m2``, ``team`` (learners), ``attacker-m2-v3``, ``team-v2`` (snapshots),
+``attacker-m2-exploiter``, ``team-exploiter-v1`` (exploiters and their snapshots),
+``team-br0`` (best responses), ``scripted-lead_intercept`` (scripted).
 """
 
 from __future__ import annotations
@@ -19,7 +25,10 @@ from typing import Literal
 from envs.scripted import PAPER_TEAM
 
 Side = Literal["attacker", "team"]
-Kind = Literal["learner", "snapshot", "scripted", "best_response"]
+Kind = Literal["learner", "snapshot", "exploiter", "exploiter_snapshot", "scripted", "best_response"]
+TRAINED_KINDS = ("learner", "exploiter")  # kinds whose module trains; every other kind is frozen
+SNAPSHOT_KIND = {"learner": "snapshot", "exploiter": "exploiter_snapshot"}  # what a trained kind freezes into
+POOL_KINDS = ("snapshot", "exploiter_snapshot")  # trained players frozen into a side's pool
 
 
 def other_side(side: str) -> str:
@@ -44,6 +53,11 @@ class Player:
     env_step_budget: int | None = None  # a best response's training budget (env steps asked for)
 
     @property
+    def trains(self) -> bool:
+        """A learner or an exploiter: its module is trained in its side's phases."""
+        return self.kind in TRAINED_KINDS
+
+    @property
     def name(self) -> str:
         """Display name, also the module id of learners and snapshots.
 
@@ -57,7 +71,9 @@ class Player:
         base = f"attacker-m{self.reward_method}" if self.side == "attacker" else "team"
         if self.kind == "best_response":
             return f"{base}-br{self.version}"
-        return base if self.kind == "learner" else f"{base}-v{self.version}"
+        if self.kind in ("exploiter", "exploiter_snapshot"):
+            base += "-exploiter"
+        return base if self.trains else f"{base}-v{self.version}"
 
     @property
     def is_paper_team(self) -> bool:

@@ -43,7 +43,7 @@ from league.generations import GenerationLine, generation_lines, generations_plo
 from league.head_to_head import agents_of, evaluate_pairs
 from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
 from league.payoff import aggregate, attacker_won, league_ratings, wilson_interval, wins_of
-from league.players import Player
+from league.players import POOL_KINDS, Player
 from league.run_dir import RunDirError, open_run
 from league.store import LeagueStore
 
@@ -119,7 +119,7 @@ def player_games(store: LeagueStore, payoff: dict[tuple[int, int], tuple[int, in
 
 def learner_win_rates(store: LeagueStore, players: list[Player]) -> Series:
     """Each learner's win rate over its training episodes, per iteration it played."""
-    learners = {p.id: p for p in players if p.kind == "learner"}
+    learners = {p.id: p for p in players if p.trains}
     counts: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0])
     for iteration, attacker, team, outcome, n in store.training_rows_by_iteration():
         for pid in (attacker, team):
@@ -190,7 +190,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         for module, value in json.loads(row["returns"] or "{}").items():
             returns[module][0].append(row["iteration"])
             returns[module][1].append(value)
-    learner_sides = {p.name: p.side for p in players if p.kind == "learner"}
+    learner_sides = {p.name: p.side for p in players if p.trains}
     learning_side = {row["iteration"]: row["learner_side"] for row in iterations}
 
     # Each side's newest snapshot against a scripted opponent (the paper's team when there is one).
@@ -358,7 +358,7 @@ def line_plot(series: Series, phases: list[Phase], ylabel: str, title: str, out:
 
 
 def ratings_plot(data: ReportData, out: Path) -> None:
-    """One panel per side: learners and scripted players named, snapshots as thin grey lines (see the table)."""
+    """One panel per side: learners, exploiters and scripted players named, snapshots as thin grey lines (see the table)."""
     fig, axes = plt.subplots(1, 2, figsize=(12, 5.5), sharey=True)
     colours = plt.get_cmap("tab10")
     for ax, side in zip(axes, ("attacker", "team")):
@@ -368,10 +368,10 @@ def ratings_plot(data: ReportData, out: Path) -> None:
             x, y = data.ratings.get(player.id, ([], []))
             if not x:
                 continue
-            if player.kind == "snapshot":
+            if player.kind in POOL_KINDS:
                 ax.plot(*broken(x, y), color="grey", lw=0.6, alpha=0.6)
                 continue
-            style = {"lw": 1.8} if player.kind == "learner" else {"lw": 1.2, "ls": "--"}
+            style = {"lw": 1.8} if player.trains else {"lw": 1.2, "ls": "--"}
             ax.plot(*broken(x, y), label=f"{player.name} ({player.kind})", color=colours(named % 10), **style)
             named += 1
         ax.plot([], [], color="grey", lw=0.6, label="snapshots (table below)")

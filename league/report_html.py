@@ -20,6 +20,7 @@ from envs.render import COLOURS
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
 from league.generations import generations_figure
 from league.nash import META_GAME_NOTE, MIXTURE_HEADER
+from league.players import POOL_KINDS
 from league.report import (
     GENERATIONS_NOTE,
     NO_EXPLOITABILITY,
@@ -105,7 +106,7 @@ def ratings_figure(data: "ReportData") -> go.Figure:
             if not x:
                 continue
             xs, ys = broken_lists(x, y)
-            snapshot = player.kind == "snapshot"
+            snapshot = player.kind in POOL_KINDS
             fig.add_trace(go.Scatter(
                 x=xs, y=ys, name=player.name, mode="lines", legendgroup=side,
                 line=dict(width=0.8 if snapshot else 2, dash="dash" if player.kind == "scripted" else "solid"),

@@ -118,9 +118,11 @@ def _draw(seed: int, episode_id: str, salt: str, weights: list[float]) -> int:
 class MatchPlan:
     """Agent -> module mapping for one phase.
 
-    Each episode draws one of the side's ``learners`` (uniformly), then that learner's
-    opponent with its PFSP ``probabilities``; both draws depend only on the seed and the
-    episode id, so every agent of an episode gets the same match.
+    Each episode draws one of the side's ``learners`` (uniformly; the coordinator lists the
+    side's exploiters among them, so each gets a learner's share of the games), then that
+    learner's opponent with its ``probabilities`` (PFSP, or uniform over an exploiter's
+    targets); both draws depend only on the seed and the episode id, so every agent of an
+    episode gets the same match.
     """
 
     learners: list[dict[str, str]]
@@ -334,7 +336,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
         .multi_agent(
             policies=set(specs),
             policy_mapping_fn=plan,
-            policies_to_train=[p.name for p in players if p.kind == "learner"],
+            policies_to_train=[p.name for p in players if p.trains],
         )
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
         .training(
