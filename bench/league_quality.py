@@ -8,12 +8,14 @@ settings and env-step budget per side, then compares the final players of each s
 | ``protocol``       | the frozen attacker of phase 1 (which learned against the scripted teams), one phase |
 | ``naive``          | the other side's newest snapshot only, phases in turn      |
 | ``league``         | PFSP over the other side's scripted players and snapshots  |
-| ``league-exploiters`` | as ``league``, with main exploiters (``league.exploiters``) |
+| ``league-exploiters`` | as ``league``, with a main exploiter on each side (``league.exploiters``) |
 
 Every arm: method-2 attacker reward with a terminal reward of +-``--terminal-reward`` (so
 both sides learn to win), ``--phases`` alternating phases of ``--phase-env-steps``
 (``protocol``: two phases of half the total each), and phases that end only on their
-budget, so each side samples the same env steps in every arm.
+budget, so each side samples the same env steps in every arm. With exploiters a phase ends
+on its learner's env steps and the exploiter samples about as many again, so that arm's
+phases get half the budget: the same total per side, half of it the learner's.
 
 For each arm's final team (and final attacker): the win rate against every scripted player
 of the other side and every arm's final player of the other side on the same
@@ -59,18 +61,18 @@ def arm_overrides(arm: str, args: argparse.Namespace) -> list[str]:
         phases = [f"{{learner: {'attacker' if i % 2 == 0 else 'team'}, env_steps: {args.phase_env_steps}, "
                   f"opponents: {'scripted' if i == 0 else 'latest'}}}" for i in range(args.phases)]
         return [*common, "league.mode=protocol", f"league.phases=[{', '.join(phases)}]"]
-    league = [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
-              f"league.phase_env_steps={args.phase_env_steps}", "league.snapshot_win_rate=1.0",
-              f"league.min_phase_episodes={10**9}"]  # a phase ends on its budget only
-    if arm == "league-exploiters":
-        league.append(f"league.exploiters=[{', '.join(args.exploiters)}]")
-    return league
+    exploiters = arm == "league-exploiters"
+    return [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
+            f"league.phase_env_steps={args.phase_env_steps // 2 if exploiters else args.phase_env_steps}",
+            "league.snapshot_win_rate=1.0", f"league.min_phase_episodes={10**9}",  # a phase ends on its budget only
+            f"league.exploiters=[{'attacker, team' if exploiters else ''}]"]
 
 
-def final_player(players: list[Player], side: str) -> Player:
-    """The side's newest snapshot of its main learner (for attackers, the method-2 one)."""
-    snapshots = [p for p in players if p.side == side and p.kind == "snapshot" and p.reward_method in (None, 2)]
-    return max(snapshots, key=lambda p: p.version)
+def final_player(players: list[Player], side: str, kind: str = "snapshot") -> Player | None:
+    """The side's newest snapshot of its main learner (``kind="exploiter_snapshot"``: of its
+    exploiter); for attackers, the method-2 one."""
+    snapshots = [p for p in players if p.side == side and p.kind == kind and p.reward_method in (None, 2)]
+    return max(snapshots, key=lambda p: p.version, default=None)
 
 
 def exploitability_of(run_dir: Path, player: Player, args: argparse.Namespace):
@@ -105,8 +107,6 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=Path("runs/league_quality"))
     parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=ARMS)
-    parser.add_argument("--exploiters", nargs="+", default=["attacker", "team"], choices=["attacker", "team"],
-                        help="the sides with an exploiter in the league-exploiters arm")
     parser.add_argument("--phases", type=int, default=6, help="alternating phases (even: both sides the same budget)")
     parser.add_argument("--phase-env-steps", type=int, default=200_000)
     parser.add_argument("--terminal-reward", type=float, default=30.0)
@@ -124,6 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     walls = json.loads(walls_file.read_text()) if walls_file.exists() else {}
 
     finals: dict[str, dict[str, Player]] = {}
+    exploiter_steps: dict[str, dict[str, int]] = {}
     game = None
     for arm in args.arms:
         run_dir = args.out / arm
@@ -139,6 +140,8 @@ def main(argv: list[str] | None = None) -> int:
             store.close()
         game = run.game
         finals[arm] = {side: final_player(players, side) for side in ("attacker", "team")}
+        exploiter_steps[arm] = {side: getattr(final_player(players, side, "exploiter_snapshot"), "env_steps", 0)
+                                for side in ("attacker", "team")}
         scripted = {side: [p for p in players if p.side == side and p.kind == "scripted"] for side in ("attacker", "team")}
 
     positions = evaluation_scenarios(game.scenario, args.episodes)
@@ -155,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
         columns = [*scripted[other], *(finals[arm][other] for arm in args.arms)]
         titles = [p.name.removeprefix("scripted-") for p in scripted[other]] + [f"{arm} {finals[arm][other].name}" for arm in args.arms]
         lines += ["", f"## Final {side}s: win rate against the other side, and exploitability", "",
-                  f"| arm | {side} | env steps | " + " | ".join(titles) + " | exploitability (per seed) |",
+                  f"| arm | {side} | env steps (learner + exploiter) | " + " | ".join(titles) + " | exploitability (per seed) |",
                   "| --- " * (len(titles) + 4) + "|"]
         for arm in args.arms:
             player = finals[arm][side]
@@ -170,7 +173,8 @@ def main(argv: list[str] | None = None) -> int:
             interval = found.interval()
             seeds = ", ".join(f"{r.win_rate:.3f}" for r in found.results)
             spread = f" [{interval[0]:.3f}, {interval[1]:.3f}]" if interval else ""
-            lines.append(f"| {arm} | {player.name} | {player.env_steps:,} | " + " | ".join(cells)
+            steps = f"{player.env_steps:,}" + (f" + {exploiter_steps[arm][side]:,}" if exploiter_steps[arm][side] else "")
+            lines.append(f"| {arm} | {player.name} | {steps} | " + " | ".join(cells)
                          + f" | {found.mean:.3f}{spread} ({seeds}) |")
             print(lines[-1], flush=True)
     (args.out / "league_quality.md").write_text("\n".join(lines) + "\n")
