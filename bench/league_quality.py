@@ -9,6 +9,7 @@ settings and env-step budget per side, then compares the final players of each s
 | ``naive``          | the other side's newest snapshot only, phases in turn      |
 | ``league``         | PFSP over the other side's scripted players and snapshots  |
 | ``league-exploiters`` | as ``league``, with a main exploiter on each side (``league.exploiters``) |
+| ``league-variance`` | as ``league``, PFSP weighting ``variance``, x(1 - x), instead of ``squared`` |
 
 Every arm: method-2 attacker reward with a terminal reward of +-``--terminal-reward`` (so
 both sides learn to win), ``--phases`` alternating phases of ``--phase-env-steps``
@@ -44,7 +45,7 @@ from league.players import Player
 from league.reproduce import finished, train_run
 from league.run_dir import open_run
 
-ARMS = ("protocol", "naive", "league", "league-exploiters")
+ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance")
 
 
 def arm_overrides(arm: str, args: argparse.Namespace) -> list[str]:
@@ -65,7 +66,8 @@ def arm_overrides(arm: str, args: argparse.Namespace) -> list[str]:
     return [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
             f"league.phase_env_steps={args.phase_env_steps // 2 if exploiters else args.phase_env_steps}",
             "league.snapshot_win_rate=1.0", f"league.min_phase_episodes={10**9}",  # a phase ends on its budget only
-            f"league.exploiters=[{'attacker, team' if exploiters else ''}]"]
+            f"league.exploiters=[{'attacker, team' if exploiters else ''}]",
+            f"league.pfsp={'variance' if arm == 'league-variance' else 'squared'}"]
 
 
 def final_player(players: list[Player], side: str, kind: str = "snapshot") -> Player | None:
@@ -106,7 +108,7 @@ def win_cell(wins: int, games: int) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=Path("runs/league_quality"))
-    parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=ARMS)
+    parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=ARMS)  # the first arm's scripted players head the tables
     parser.add_argument("--phases", type=int, default=6, help="alternating phases (even: both sides the same budget)")
     parser.add_argument("--phase-env-steps", type=int, default=200_000)
     parser.add_argument("--terminal-reward", type=float, default=30.0)
