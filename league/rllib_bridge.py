@@ -109,6 +109,8 @@ def player_specs(run: RunConfig, player: Player) -> dict[str, RLModuleSpec]:
 
 def _draw(seed: int, episode_id: str, salt: str, weights: list[float]) -> int:
     """Index drawn with ``weights``, fixed by (seed, episode, salt): no state between calls."""
+    if len(weights) == 1:  # the only index, whatever the draw (seeding the generator costs more than the rest)
+        return 0
     cumulative = np.cumsum(weights)
     draw = random.Random(f"{seed}:{episode_id}:{salt}").random() * cumulative[-1]
     return int(min(np.searchsorted(cumulative, draw, side="right"), len(weights) - 1))
