@@ -148,10 +148,10 @@ def gradient_steps(algo, module_id: str) -> int:
     return next(r.get() for r in algo.learner_group.foreach_learner(steps) if r.ok)
 
 
-def test_the_team_learns_in_minibatches_of_its_own(algo):  # `algo`: Ray is up
-    # `ppo.team_minibatch_size`: T and D give the team two rows per env step; at twice the
-    # attacker's minibatch both take as many gradient steps per env step.
-    run = RunConfig(**{**RUN.model_dump(), "ppo": {**RUN.ppo.model_dump(), "team_minibatch_size": 200}})
+def test_minibatches_counted_in_env_steps_give_the_team_twice_the_rows(algo):  # `algo`: Ray is up
+    # `ppo.minibatch_counts: env_steps`: T and D give the team two rows per env step; in
+    # minibatches of twice the rows it takes as many gradient steps per env step as the attacker.
+    run = RunConfig(**{**RUN.model_dump(), "ppo": {**RUN.ppo.model_dump(), "minibatch_counts": "env_steps"}})
     plan = MatchPlan([{"attacker": ATTACKER.name}], [[TEAM.modules()]], [[1.0]], seed=0)  # the team in every game
     own = build_config(run, [ATTACKER, TEAM, SCRIPTED_TEAM], plan).build_algo()
     try:
