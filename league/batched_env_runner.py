@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass
 from typing import Any
 
@@ -183,6 +183,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self._first_infos: list[dict] = [RESET_INFOS] * n  # infos of each chunk's first observation
         self._earlier_chunks: dict[str, list[MultiAgentEpisode]] = defaultdict(list)
         self._finished: list[tuple] = []  # (length, agent returns, module returns, seconds) per episode
+        self._outcomes: Counter[tuple[tuple[str, ...], str]] = Counter()  # finished games by (modules, outcome)
         self.rollout.reset(seed=compat.env_runner_seed(self) if self._needs_seeded_reset else None)
         self._needs_seeded_reset = False
 
@@ -212,6 +213,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         )
         self._count_steps(self.num_envs * t, num_done, module_steps)
         self._log_finished_episodes()
+        for (modules, outcome), count in self._outcomes.items():
+            log_outcome(self.metrics, list(modules), outcome, count)
+        self._outcomes.clear()
         return done_episodes, rows, t
 
     def _agents_that_observe(self) -> tuple[str, ...]:
@@ -342,7 +346,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         for agent, module_id in zip(AGENTS, modules):
             module_returns[module_id] += returns[agent]
         self._finished.append((length, returns, dict(module_returns), time.perf_counter() - self.rollout.started[game]))
-        log_outcome(self.metrics, modules, Outcome(outcome).label)
+        self._outcomes[(tuple(modules), Outcome(outcome).label)] += 1  # logged per key after the play: one call, not one a game
 
     def _training_data(self, rows: Rows, t: int) -> dict[str, dict[str, np.ndarray]]:
         """Every trained module's PPO columns from rows ``0..t`` (see ``sample_training_data``)."""
@@ -423,9 +427,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 self.metrics.log_value((NUM_MODULE_STEPS_SAMPLED_LIFETIME, module_id), steps, reduce="lifetime_sum")
 
 
-def log_outcome(metrics: Any, modules: list[str], outcome: str) -> None:
-    """Count one finished game by its (attacker, targeter, defender) modules and outcome."""
-    metrics.log_value((OUTCOMES_KEY, SEPARATOR.join(modules), outcome), 1, reduce="sum")
+def log_outcome(metrics: Any, modules: list[str], outcome: str, count: int = 1) -> None:
+    """Count ``count`` finished games by their (attacker, targeter, defender) modules and outcome."""
+    metrics.log_value((OUTCOMES_KEY, SEPARATOR.join(modules), outcome), count, reduce="sum")
 
 
 def _forward(module: Any, obs: torch.Tensor, explore: bool) -> dict[str, np.ndarray]:

@@ -53,9 +53,20 @@ class PPOSettings(Strict):
     grad_clip: float | None = Field(0.5, gt=0)
     train_batch_size: int = Field(4000, ge=32, description="env steps per training iteration")
     minibatch_size: int = Field(500, ge=8)
+    minibatch_counts: Literal["rows", "env_steps"] = "rows"
+    """What ``minibatch_size`` counts. ``rows``: training rows, for every learner. ``env_steps``:
+    the rows of that many env steps, so the team learner, whose module plays T and D (two rows
+    per env step against the attacker's one), learns in minibatches of ``2 * minibatch_size``
+    rows and takes as many gradient steps per env step as the attacker instead of twice as
+    many. Needs ``resources.sampler: fast`` (RLlib's PPO has one minibatch size)."""
     num_epochs: int = Field(5, ge=1)
     hidden: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [64, 64], min_length=1)
     """Hidden layer sizes of both the policy and the value network."""
+
+    def minibatch(self, side: Side) -> int:
+        """Rows per minibatch of the ``side`` learner's updates."""
+        rows_per_env_step = 2 if side == "team" and self.minibatch_counts == "env_steps" else 1  # the team: T and D
+        return rows_per_env_step * self.minibatch_size
 
     def discount(self, side: Side) -> tuple[float, float]:
         """``(gamma, lambda)`` of the ``side`` learner."""
@@ -217,6 +228,8 @@ class RunConfig(Strict):
     def _check(self) -> "RunConfig":
         if self.ppo.minibatch_size > self.ppo.train_batch_size:
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
+        if self.ppo.minibatch_counts != "rows" and self.resources.sampler != "fast":
+            raise ValueError("ppo.minibatch_counts: env_steps needs resources.sampler: fast (RLlib's PPO has one minibatch size)")
         if self.ppo.discount("team") != self.ppo.discount("attacker") and self.resources.sampler != "fast":
             raise ValueError(
                 "ppo.team_gamma and ppo.team_lambda_ need resources.sampler: fast "

@@ -109,6 +109,8 @@ def player_specs(run: RunConfig, player: Player) -> dict[str, RLModuleSpec]:
 
 def _draw(seed: int, episode_id: str, salt: str, weights: list[float]) -> int:
     """Index drawn with ``weights``, fixed by (seed, episode, salt): no state between calls."""
+    if len(weights) == 1:  # the only index, whatever the draw (seeding the generator costs more than the rest)
+        return 0
     cumulative = np.cumsum(weights)
     draw = random.Random(f"{seed}:{episode_id}:{salt}").random() * cumulative[-1]
     return int(min(np.searchsorted(cumulative, draw, side="right"), len(weights) - 1))
@@ -251,7 +253,7 @@ class LeaguePPO(PPO):
                     ),
                 },
                 num_epochs=config.num_epochs,
-                minibatch_size=config.minibatch_size,
+                minibatch_size=minibatch_size(config, batch),
                 shuffle_batch_per_epoch=config.shuffle_batch_per_epoch,
             )
             self.metrics.aggregate(learner_results, key=LEARNER_RESULTS)
@@ -261,6 +263,18 @@ class LeaguePPO(PPO):
                 policies=set(learner_results[0]) - {ALL_MODULES},
                 inference_only=True,
             )
+
+
+MINIBATCH_SIZES = "league_minibatch_sizes"  # `learner_config_dict` key: learner module id -> rows per minibatch
+
+
+def minibatch_size(config: Any, batch: MultiAgentBatch) -> int:
+    """Rows per minibatch of the learners in ``batch`` (``PPOSettings.minibatch``); one side learns at a time."""
+    by_module = config.learner_config_dict.get(MINIBATCH_SIZES, {})
+    sizes = {by_module.get(module_id, config.minibatch_size) for module_id in batch.policy_batches}
+    if len(sizes) != 1:
+        raise ValueError(f"one update of learners with different minibatch sizes: {sorted(batch.policy_batches)}")
+    return sizes.pop()
 
 
 def training_batch(parts: list[dict[str, dict[str, np.ndarray]]], env_steps: int) -> MultiAgentBatch | None:
@@ -332,7 +346,12 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             rollout_fragment_length="auto",
             env_runner_cls=MultiAgentEnvRunner if res.sampler == "standard" else BatchedEnvRunner,
         )
-        .learners(num_learners=0)
+        .learners(
+            num_learners=0,
+            learner_config_dict={
+                MINIBATCH_SIZES: {p.name: ppo.minibatch(p.side) for p in players if p.kind == "learner"}
+            },
+        )
         .multi_agent(
             policies=set(specs),
             policy_mapping_fn=plan,

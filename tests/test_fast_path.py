@@ -138,3 +138,31 @@ def test_a_fast_training_iteration_trains_the_learners_and_counts_matches(algo):
     played = episode_outcomes(result)
     assert sum(count for _, _, count in played) == runners["num_episodes"] > 0
     assert {modules[1:] for modules, _, _ in played} <= {tuple(TEAM.modules().values()), tuple(SCRIPTED_TEAM.modules().values())}
+
+
+def gradient_steps(algo, module_id: str) -> int:
+    """Adam's step count of ``module_id``'s parameters: one per minibatch it was trained on."""
+    def steps(learner) -> int:
+        return max((int(state["step"]) for state in learner.get_optimizer(module_id).state.values()), default=0)
+
+    return next(r.get() for r in algo.learner_group.foreach_learner(steps) if r.ok)
+
+
+def test_minibatches_counted_in_env_steps_give_the_team_twice_the_rows(algo):  # `algo`: Ray is up
+    # `ppo.minibatch_counts: env_steps`: T and D give the team two rows per env step; in
+    # minibatches of twice the rows it takes as many gradient steps per env step as the attacker.
+    run = RunConfig(**{**RUN.model_dump(), "ppo": {**RUN.ppo.model_dump(), "minibatch_counts": "env_steps"}})
+    plan = MatchPlan([{"attacker": ATTACKER.name}], [[TEAM.modules()]], [[1.0]], seed=0)  # the team in every game
+    own = build_config(run, [ATTACKER, TEAM, SCRIPTED_TEAM], plan).build_algo()
+    try:
+        set_trainable(own, [ATTACKER.name])
+        result = own.train()
+        assert result["learners"][ATTACKER.name]["num_module_steps_trained"] == 300
+        assert gradient_steps(own, ATTACKER.name) == 3  # 300 rows in minibatches of 100, one epoch
+        set_trainable(own, [TEAM.name])
+        result = own.train()
+        assert result["learners"][TEAM.name]["num_module_steps_trained"] == 600
+        assert gradient_steps(own, TEAM.name) == 3  # 600 rows in minibatches of 200
+        assert gradient_steps(own, ATTACKER.name) == 3  # not trained in the team's iteration
+    finally:
+        own.stop()

@@ -38,6 +38,8 @@ def write(tmp_path, text):
         ("name: x\nppo: {team_gamma: 1.5}\n", "ppo.team_gamma"),
         # RLlib's own GAE (batched and standard samplers) has one discount for every module.
         ("name: x\nppo: {team_gamma: 0.999}\nresources: {sampler: batched}\n", "team_gamma"),
+        ("name: x\nppo: {minibatch_counts: env_steps}\nresources: {sampler: standard}\n", "minibatch_counts"),
+        ("name: x\nppo: {minibatch_counts: games}\n", "ppo.minibatch_counts"),
     ],
 )
 def test_invalid_config_names_the_key(tmp_path, text, key):
