@@ -108,7 +108,7 @@ def win_cell(wins: int, games: int) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=Path("runs/league_quality"))
-    parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=ARMS)  # the first arm's scripted players head the tables
+    parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=ARMS)
     parser.add_argument("--phases", type=int, default=6, help="alternating phases (even: both sides the same budget)")
     parser.add_argument("--phase-env-steps", type=int, default=200_000)
     parser.add_argument("--terminal-reward", type=float, default=30.0)
@@ -127,7 +127,6 @@ def main(argv: list[str] | None = None) -> int:
 
     finals: dict[str, dict[str, Player]] = {}
     exploiter_steps: dict[str, dict[str, int]] = {}
-    game = None
     for arm in args.arms:
         run_dir = args.out / arm
         if not finished(run_dir):
@@ -140,13 +139,13 @@ def main(argv: list[str] | None = None) -> int:
             players = store.players()
         finally:
             store.close()
-        game = run.game
         finals[arm] = {side: final_player(players, side) for side in ("attacker", "team")}
         exploiter_steps[arm] = {side: getattr(final_player(players, side, "exploiter_snapshot"), "env_steps", 0)
                                 for side in ("attacker", "team")}
+        # every arm has the same game and scripted players (arm_overrides changes only the league)
         scripted = {side: [p for p in players if p.side == side and p.kind == "scripted"] for side in ("attacker", "team")}
 
-    positions = evaluation_scenarios(game.scenario, args.episodes)
+    positions = evaluation_scenarios(run.game.scenario, args.episodes)
     lines = [
         "# Is the league any good? (bench/league_quality.py)", "",
         f"Settings: `selfplay_league.yaml`, method-2 attacker, terminal reward +-{args.terminal_reward:g}, "
@@ -157,7 +156,8 @@ def main(argv: list[str] | None = None) -> int:
     ]
     for side in args.sides:
         other = "attacker" if side == "team" else "team"
-        columns = [*scripted[other], *(finals[arm][other] for arm in args.arms)]
+        # (player, its run directory): a scripted player needs none, a learned one its module from there
+        columns = [(p, None) for p in scripted[other]] + [(finals[arm][other], args.out / arm) for arm in args.arms]
         titles = [p.name.removeprefix("scripted-") for p in scripted[other]] + [f"{arm} {finals[arm][other].name}" for arm in args.arms]
         lines += ["", f"## Final {side}s: win rate against the other side, and exploitability", "",
                   f"| arm | {side} | env steps (learner + exploiter) | " + " | ".join(titles) + " | exploitability (per seed) |",
@@ -165,9 +165,9 @@ def main(argv: list[str] | None = None) -> int:
         for arm in args.arms:
             player = finals[arm][side]
             cells = []
-            for opponent, home in zip(columns, [*[args.out / args.arms[0]] * len(scripted[other]), *(args.out / a for a in args.arms)]):
+            for opponent, home in columns:
                 pair = {**policies_of(player, args.out / arm), **policies_of(opponent, home)}
-                result = play_fixed_games(game, positions, pair)
+                result = play_fixed_games(run.game, positions, pair)
                 attacker_wins = int(result.attacker_wins.sum())
                 wins = attacker_wins if side == "attacker" else args.episodes - attacker_wins
                 cells.append(win_cell(wins, args.episodes))

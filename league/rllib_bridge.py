@@ -349,7 +349,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
         .learners(
             num_learners=0,
             learner_config_dict={
-                MINIBATCH_SIZES: {p.name: ppo.minibatch(p.side) for p in players if p.kind == "learner"}
+                MINIBATCH_SIZES: {p.name: ppo.minibatch(p.side) for p in players if p.trains}
             },
         )
         .multi_agent(

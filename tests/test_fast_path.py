@@ -7,7 +7,7 @@ import torch
 
 from league.config import RunConfig
 from league.players import Player
-from league.rllib_bridge import LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable
+from league.rllib_bridge import MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable
 from league.train_batch import gae
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
 from ray.rllib.core.columns import Columns
@@ -146,6 +146,16 @@ def gradient_steps(algo, module_id: str) -> int:
         return max((int(state["step"]) for state in learner.get_optimizer(module_id).state.values()), default=0)
 
     return next(r.get() for r in algo.learner_group.foreach_learner(steps) if r.ok)
+
+
+def test_an_exploiter_learns_in_its_sides_minibatches():
+    # A team exploiter trains in the same update as the team learner: a different minibatch
+    # size would stop that update (`rllib_bridge.minibatch_size`).
+    run = RunConfig(**{**RUN.model_dump(), "ppo": {**RUN.ppo.model_dump(), "minibatch_counts": "env_steps"}})
+    exploiter = Player(id=4, side="team", kind="exploiter", version=0)
+    plan = MatchPlan([{"attacker": ATTACKER.name}], [[TEAM.modules()]], [[1.0]], seed=0)
+    sizes = build_config(run, [ATTACKER, TEAM, exploiter, SCRIPTED_TEAM], plan).learner_config_dict[MINIBATCH_SIZES]
+    assert sizes == {ATTACKER.name: 100, TEAM.name: 200, exploiter.name: 200}
 
 
 def test_minibatches_counted_in_env_steps_give_the_team_twice_the_rows(algo):  # `algo`: Ray is up
