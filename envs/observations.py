@@ -163,6 +163,11 @@ def global_state(config: GameConfig, positions: np.ndarray, headings: np.ndarray
     return np.concatenate(parts, axis=1).astype(np.float32)
 
 
+def terminal_distance(config: GameConfig, states: np.ndarray) -> np.ndarray:
+    """T's distance to the terminal, read from global states (any leading axes)."""
+    return np.asarray(states[..., 20], dtype=np.float64) * config.position_scale
+
+
 def decode_global_state(config: GameConfig, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(positions (N, 3, 3), headings (N, 3, 2), time_left (N,))`` back from global states."""
     states = np.asarray(states, dtype=np.float64)

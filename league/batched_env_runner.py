@@ -45,11 +45,12 @@ import numpy as np
 import torch
 
 from envs.agents import AGENTS, Outcome
+from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
 from envs.vector_env import TargetDefenseVectorEnv
 from league import rllib_compat as compat
 from league.modules import ScriptedModule
 from league.rollout import Policy, Rollout, Rows, ScriptedOnState
-from league.train_batch import gae
+from league.train_batch import gae, potential_shaping
 from ray.rllib.callbacks.utils import make_callback
 from ray.rllib.core.columns import Columns
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
@@ -374,6 +375,10 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                     rewards = rows.attacker_rewards[:t, :, method - 1]  # this module's reward method
                 else:
                     rewards = rows.rewards[agent][:t]
+                shaping = module_config.get("targeter_shaping")
+                if agent == "targeter" and shaping:  # `PPOSettings.targeter_shaping`
+                    distance = terminal_distance(self.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
+                    rewards = rewards + potential_shaping(-shaping * distance, ended, gamma)
                 advantages, targets = gae(rewards, values[:t], values[t], ended, gamma, lambda_)
                 columns = {
                     Columns.OBS: obs[:t][played],

@@ -47,6 +47,13 @@ class PPOSettings(Strict):
     "The team's learning"). Needs ``resources.sampler: fast`` (RLlib's own GAE has one discount for every module)."""
     team_lambda_: float | None = Field(None, ge=0, le=1)
     """GAE ``lambda`` of the team learner; ``None``: ``lambda_``. Same sampler caveat."""
+    targeter_shaping: float = Field(0.0, ge=0)
+    """``k``: in training, T's rewards get the potential-based shaping ``gamma Phi(s') - Phi(s)``
+    with ``Phi = -k |T ter|`` (``league.train_batch.potential_shaping``): ``k`` per unit T
+    closes on the terminal, paid back when the game ends, so it changes no policy's ranking.
+    Without it T never found the terminal sphere (radius ``v_T``, one step of T) by exploring,
+    and trained teams won only by D's interceptions (README, "The team's learning"). Returns
+    in curves, evaluations and metrics stay unshaped. Needs ``resources.sampler: fast``."""
     clip_param: float = Field(0.2, gt=0)
     entropy_coeff: float = Field(0.0, ge=0)
     vf_loss_coeff: float = Field(0.5, ge=0)
@@ -230,6 +237,8 @@ class RunConfig(Strict):
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
         if self.ppo.minibatch_counts != "rows" and self.resources.sampler != "fast":
             raise ValueError("ppo.minibatch_counts: env_steps needs resources.sampler: fast (RLlib's PPO has one minibatch size)")
+        if self.ppo.targeter_shaping and self.resources.sampler != "fast":
+            raise ValueError("ppo.targeter_shaping needs resources.sampler: fast (RLlib's learner connectors would not shape)")
         if self.ppo.discount("team") != self.ppo.discount("attacker") and self.resources.sampler != "fast":
             raise ValueError(
                 "ppo.team_gamma and ppo.team_lambda_ need resources.sampler: fast "

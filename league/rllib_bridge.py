@@ -87,6 +87,7 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
             # The fast sampler's GAE reads them per module (the team's may differ: `PPOSettings.team_gamma`).
             "gamma": gamma,
             "lambda_": lambda_,
+            "targeter_shaping": run.ppo.targeter_shaping if side == "team" else 0.0,
         },
     )
 

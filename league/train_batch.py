@@ -42,6 +42,18 @@ def gae(
     return advantages, advantages + values
 
 
+def potential_shaping(potentials: np.ndarray, ended: np.ndarray, gamma: float) -> np.ndarray:
+    """Shaping rewards ``gamma * Phi(s') - Phi(s)`` ``(T, G)`` from ``potentials`` ``(T + 1, G)``.
+
+    ``potentials[t]`` is ``Phi`` of the state before step ``t``; the last row is the state
+    after the last step. A game that ended on step ``t`` has potential 0 after it: that
+    makes the shaping sum over a game ``-Phi(s_0)`` whatever the agent does, so it changes
+    no policy's ranking (Ng, Harada and Russell 1999) while paying for progress at once.
+    """
+    following = np.where(ended.astype(bool), 0.0, potentials[1:])
+    return gamma * following - potentials[:-1]
+
+
 def standardized(advantages: np.ndarray) -> np.ndarray:
     """Zero mean, unit standard deviation (the floor 1e-4 as RLlib's connector has it)."""
     return (advantages - advantages.mean()) / max(1e-4, float(advantages.std()))

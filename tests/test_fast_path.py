@@ -8,7 +8,8 @@ import torch
 from league.config import RunConfig
 from league.players import Player
 from league.rllib_bridge import MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable
-from league.train_batch import gae
+from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
+from league.train_batch import gae, potential_shaping
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
 from ray.rllib.core.columns import Columns
 from ray.rllib.evaluation.postprocessing import Postprocessing
@@ -42,6 +43,19 @@ def test_gae_cuts_at_game_ends_and_bootstraps_truncated_games():
     )
     np.testing.assert_allclose(advantages, expected, rtol=1e-12)
     np.testing.assert_allclose(targets, expected + values, rtol=1e-12)
+
+
+def test_potential_shaping_sums_to_the_start_potential_over_every_finished_game():
+    # Two games of three steps: game 0 ends on step 1 (a new one starts on step 2), game 1 runs on.
+    potentials = np.array([[-3.0, -2.0], [-2.5, -2.2], [-1.0, -1.5], [-0.8, -1.4]])
+    ended = np.array([[0, 0], [1, 0], [0, 0]], dtype=float)
+    shaping = potential_shaping(potentials, ended, gamma=1.0)
+    # Game 0's first episode: whatever the path, its shaping sums to -Phi(s_0) (potential 0 after the end).
+    assert shaping[0, 0] + shaping[1, 0] == 3.0
+    # A game still running at the last row is shaped toward the state after it.
+    np.testing.assert_array_equal(shaping[:, 1], [-2.2 + 2.0, -1.5 + 2.2, -1.4 + 1.5])
+    # With a discount, gamma * Phi(s') - Phi(s), step by step.
+    np.testing.assert_allclose(potential_shaping(potentials, ended, gamma=0.9)[0], [0.9 * -2.5 + 3.0, 0.9 * -2.2 + 2.0], rtol=1e-15)
 
 
 # The team discounts differently from the attacker (`PPOSettings.team_gamma`): each module's GAE must use its own.
@@ -176,3 +190,35 @@ def test_minibatches_counted_in_env_steps_give_the_team_twice_the_rows(algo):  #
         assert gradient_steps(own, ATTACKER.name) == 3  # not trained in the team's iteration
     finally:
         own.stop()
+
+
+def test_the_targeters_shaping_reaches_its_rows_and_no_others(algo):
+    # `ppo.targeter_shaping`: only T's rewards are shaped (D's and the attacker's stay as they were).
+    set_trainable(algo, [ATTACKER.name, TEAM.name])
+    runner = algo.env_runner
+    runner._reset_all()
+    done, rows, t = runner._play(40, None, True, False)
+    team = runner.module[TEAM.name]
+    plain = runner._training_data(rows, t)
+    team.model_config["targeter_shaping"] = 3.0
+    try:
+        shaped = runner._training_data(rows, t)
+    finally:
+        team.model_config["targeter_shaping"] = 0.0
+    np.testing.assert_array_equal(shaped[ATTACKER.name][Postprocessing.ADVANTAGES], plain[ATTACKER.name][Postprocessing.ADVANTAGES])
+    # The team's columns hold T's rows, then D's. GAE is linear in the rewards, so the
+    # shaping adds GAE of the shaping rewards alone (values 0) to T's advantages.
+    gamma, lambda_ = RUN.ppo.discount("team")
+    index = runner.rollout.module_ids.index(TEAM.name)
+    played = rows.modules[:t, :, 1] == index
+    ended = (rows.outcome[:t] != 0).astype(float)
+    obs = rows.observations["targeter"][: t + 1]
+    potentials = -3.0 * terminal_distance(runner.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
+    zeros = np.zeros(ended.shape)
+    added, _ = gae(potential_shaping(potentials, ended, gamma), zeros, zeros[0], ended, gamma, lambda_)
+    targeter_rows = int(played.sum())
+    assert 0 < targeter_rows < len(plain[TEAM.name][Columns.OBS])
+    difference = shaped[TEAM.name][Postprocessing.ADVANTAGES] - plain[TEAM.name][Postprocessing.ADVANTAGES]
+    # float32 columns of advantages of size ~10: rounding ~1e-6.
+    np.testing.assert_allclose(difference[:targeter_rows], added[played], rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(difference[targeter_rows:], 0.0)
