@@ -40,6 +40,8 @@ def write(tmp_path, text):
         ("name: x\nppo: {team_gamma: 0.999}\nresources: {sampler: batched}\n", "team_gamma"),
         ("name: x\nppo: {minibatch_counts: env_steps}\nresources: {sampler: standard}\n", "minibatch_counts"),
         ("name: x\nppo: {minibatch_counts: games}\n", "ppo.minibatch_counts"),
+        ("name: x\nppo: {targeter_shaping: -1}\n", "ppo.targeter_shaping"),
+        ("name: x\nppo: {targeter_shaping: 3}\nresources: {sampler: batched}\n", "targeter_shaping"),
     ],
 )
 def test_invalid_config_names_the_key(tmp_path, text, key):
