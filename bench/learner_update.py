@@ -10,7 +10,8 @@ Each round starts from the same weights and optimizer state.
 
 It imports only what every tree since issue 13 has, so the same script can time another
 tree's Learner (``PYTHONPATH=/path/to/other/tree``). ``--profile FILE`` writes a cProfile of
-the rounds. The last line reads ``update S s (median of R), rows N, minibatches M``.
+the rounds. The last line reads ``update S s, CPU C s (medians of R), rows N, minibatches M``
+(the CPU time of this process, less moved by other processes on a shared machine).
 """
 
 from __future__ import annotations
@@ -52,9 +53,9 @@ def main() -> None:
         [learner] = [r.get() for r in algo.learner_group.foreach_learner(lambda learner: learner)]  # the local one (num_learners=0)
         start = learner.get_state(components=["rl_module", "optimizer"])
 
-        def update() -> float:
+        def update() -> tuple[float, float]:
             learner.set_state(copy.deepcopy(start))  # (a restored optimizer keeps the arrays it is given)
-            began = time.perf_counter()
+            began, cpu = time.perf_counter(), time.process_time()
             learner.update(
                 batch=batch,
                 timesteps={NUM_ENV_STEPS_SAMPLED_LIFETIME: 0, NUM_MODULE_STEPS_TRAINED_LIFETIME: 0},
@@ -62,22 +63,23 @@ def main() -> None:
                 minibatch_size=minibatch_size(config, batch),
                 shuffle_batch_per_epoch=config.shuffle_batch_per_epoch,
             )
-            return time.perf_counter() - began
+            return time.perf_counter() - began, time.process_time() - cpu
 
         update()  # warm-up
         profiler = cProfile.Profile() if args.profile else None
         if profiler:
             profiler.enable()
-        seconds = [update() for _ in range(args.rounds)]
+        seconds, cpu_seconds = zip(*(update() for _ in range(args.rounds)))
         if profiler:
             profiler.disable()
             profiler.dump_stats(args.profile)
         rows = len(batch.policy_batches[TEAM.name])
         size = minibatch_size(config, batch)
-        print("rounds:", " ".join(f"{s:.3f}" for s in seconds))
+        print("rounds (wall s):", " ".join(f"{s:.3f}" for s in seconds))
+        print("rounds (CPU s):", " ".join(f"{s:.3f}" for s in cpu_seconds))
         print(
-            f"update {statistics.median(seconds):.3f} s (median of {len(seconds)}), rows {rows}, "
-            f"minibatches {config.num_epochs * (rows // size)}"
+            f"update {statistics.median(seconds):.3f} s, CPU {statistics.median(cpu_seconds):.3f} s "
+            f"(medians of {len(seconds)}), rows {rows}, minibatches {config.num_epochs * (rows // size)}"
         )
         algo.stop()
     finally:
