@@ -321,8 +321,9 @@ class LeaguePPOLearner(PPOTorchLearner):
 
     One result differs: RLlib logs a gradient norm of 0.0 for every module with an
     optimizer that was not in the update; this logs norms of trained modules only. Episodes
-    (the standard sampler) take RLlib's ``update`` unchanged. Configs from ``build_config``
-    only: one local Learner, no ``torch.compile``, no grad scaler or torch lr scheduler.
+    (the standard sampler) and several Learners take RLlib's ``update`` unchanged.
+    (``build_config`` sets no ``torch.compile``, grad scaler or torch lr scheduler, which
+    this update does not know.)
 
     It also clocks its own updates: RLlib's ``learner_update_timer`` is an exponential
     average over iterations (coefficient 0.01), so it mostly repeats the first iteration.
@@ -336,7 +337,9 @@ class LeaguePPOLearner(PPOTorchLearner):
         params = list(self.module[module_id].parameters())
         if params:
             optimizer = torch.optim.Adam(params, foreach=True)
-            self.register_optimizer(module_id=module_id, optimizer=optimizer, params=params, lr_or_lr_schedule=config.lr)
+            self.register_optimizer(
+                module_id=module_id, optimizer=optimizer, params=params, lr_or_lr_schedule=config.lr
+            )
 
     def update(
         self,
@@ -352,7 +355,8 @@ class LeaguePPOLearner(PPOTorchLearner):
         started = time.perf_counter()
         try:
             ready = batch if training_data is None else training_data.batch  # the LearnerGroup sends `training_data`
-            if isinstance(ready, MultiAgentBatch) and minibatch_size and not kwargs:
+            one_local_learner = self.config.num_learners <= 1
+            if isinstance(ready, MultiAgentBatch) and minibatch_size and not kwargs and one_local_learner:
                 return self._update_in_minibatches(
                     ready, timesteps or {}, num_epochs, minibatch_size, shuffle_batch_per_epoch and num_epochs > 1
                 )
@@ -377,7 +381,8 @@ class LeaguePPOLearner(PPOTorchLearner):
         loss_per_module: dict[str, torch.Tensor] = {}
         for rows in minibatch_rows(lengths, minibatch_size, num_epochs, shuffle):
             minibatch = MultiAgentBatch(
-                {module_id: rows_of(columns[module_id], rows[module_id]) for module_id in columns}, env_steps=batch.env_steps()
+                {module_id: rows_of(columns[module_id], rows[module_id]) for module_id in columns},
+                env_steps=batch.env_steps(),  # as RLlib's minibatches: the whole batch's
             )
             fwd_out = self.module.forward_train(minibatch.policy_batches)
             loss_per_module = self.compute_losses(fwd_out=fwd_out, batch=minibatch.policy_batches)

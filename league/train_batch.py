@@ -69,7 +69,7 @@ def minibatch_rows(
     order = {module_id: np.arange(n) for module_id, n in lengths.items()}
     start = dict.fromkeys(lengths, 0)
     passes = dict.fromkeys(lengths, 0)
-    while min(passes.values()) < num_epochs:
+    while lengths and min(passes.values()) < num_epochs:
         minibatch = {}
         for module_id, n in lengths.items():
             s, needed, pieces = start[module_id], minibatch_size, []

@@ -8,7 +8,9 @@ import torch
 
 from league.config import RunConfig
 from league.players import Player
-from league.rllib_bridge import MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable, training_batch
+from league.rllib_bridge import (
+    MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable, training_batch,
+)
 from league.train_batch import gae, minibatch_rows
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
@@ -192,7 +194,9 @@ def test_minibatch_rows_are_rllibs_minibatches(epochs, shuffle):
     np.random.seed(7)
     rllib = [
         {m: np.asarray(b["row"]) for m, b in minibatch.policy_batches.items()}
-        for minibatch in MiniBatchCyclicIterator(batch, num_epochs=epochs, minibatch_size=4, shuffle_batch_per_epoch=shuffle)
+        for minibatch in MiniBatchCyclicIterator(
+            batch, num_epochs=epochs, minibatch_size=4, shuffle_batch_per_epoch=shuffle
+        )
     ]
     np.random.seed(7)
     ours = list(minibatch_rows(lengths, 4, epochs, shuffle))
@@ -218,12 +222,14 @@ def one_update(learner, batch, start, update):
     for module_id, coeff in start["kl_coeffs"].items():  # PPO's KL coefficient lives outside the state
         learner.curr_kl_coeffs_per_module[module_id].data.fill_(coeff)
     np.random.seed(11)  # RLlib shuffles with NumPy's global generator
-    own = MultiAgentBatch({m: SampleBatch(dict(b)) for m, b in batch.policy_batches.items()}, env_steps=batch.env_steps())
+    own = MultiAgentBatch({m: SampleBatch(dict(b)) for m, b in batch.policy_batches.items()}, batch.env_steps())
     results = update(
         learner, batch=own, timesteps={NUM_ENV_STEPS_SAMPLED_LIFETIME: 0}, num_epochs=3, minibatch_size=128,
         shuffle_batch_per_epoch=True,
     )
-    weights = {m: {k: v.detach().numpy().copy() for k, v in learner.module[m].state_dict().items()} for m in batch.policy_batches}
+    weights = {
+        m: {k: v.numpy().copy() for k, v in learner.module[m].state_dict().items()} for m in batch.policy_batches
+    }
     reported = {m: {k: stats.peek() for k, stats in values.items()} for m, values in results.items()}
     return weights, reported
 
@@ -244,7 +250,8 @@ def compare_updates(algo, corrupt=None):
             "state": copy.deepcopy(learner.get_state()),  # (the optimizer's state shares the live tensors' memory)
             "kl_coeffs": {m: learner.curr_kl_coeffs_per_module[m].item() for m in batch.policy_batches},
         }
-        return one_update(learner, batch, start, type(learner).update), one_update(learner, batch, start, PPOTorchLearner.update)
+        ours = one_update(learner, batch, start, type(learner).update)
+        return ours, one_update(learner, batch, start, PPOTorchLearner.update)
 
     [call] = algo.learner_group.foreach_learner(both)
     return call.get()
