@@ -35,7 +35,7 @@ from league import rllib_compat as compat
 from league.config import RunConfig
 from league.modules import ActorCriticModule, ScriptedModule
 from league.players import Player
-from league.train_batch import standardized
+from league.train_batch import minibatch_rows, standardized
 from ray.rllib.algorithms.algorithm import Algorithm
 from ray.rllib.algorithms.ppo import PPO, PPOConfig
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
@@ -60,6 +60,7 @@ from ray.rllib.utils.metrics import (
     SYNCH_WORKER_WEIGHTS_TIMER,
     TIMERS,
 )
+from ray.rllib.utils.torch_utils import convert_to_torch_tensor
 
 
 
@@ -300,7 +301,30 @@ def _runner_threads(threads: int, env_runner: Any = None, **kwargs: Any) -> None
 
 
 class LeaguePPOLearner(PPOTorchLearner):
-    """PPO learner that gives no optimizer to parameter-free (scripted) modules.
+    """PPO learner that gives no optimizer to parameter-free (scripted) modules, and that
+    updates from a ready batch (the fast sampler's) with less machinery per minibatch.
+
+    ``update`` of a ``MultiAgentBatch`` takes the gradient steps of RLlib's
+    ``Learner.update`` (Ray 2.60): the same minibatches in the same order
+    (``train_batch.minibatch_rows``, drawing RLlib's shuffles from NumPy's global generator),
+    RLlib's forward pass, PPO loss and metrics (``compute_losses``) and backward pass
+    (``compute_gradients``), the same clipping by global norm and Adam step, the same steps
+    counted, then RLlib's ``after_gradient_based_update`` (lr, entropy and KL coefficients).
+    ``tests/test_fast_path.py`` checks weights and results equal to RLlib's update. Cheaper:
+
+    * the minibatches are rows gathered from the batch's tensors, not the whole batch
+      shuffled column by column (in place: RLlib's update reorders the caller's batch) and
+      sliced and concatenated into ``SampleBatch`` copies;
+    * finite gradients (their global norm is) are clipped in one foreach multiply with
+      RLlib's coefficient, ``max / max(norm + 1e-6, max)``, and stepped by Adam in foreach
+      passes; RLlib's ``postprocess_gradients`` and ``apply_gradients`` go tensor by tensor,
+      with two finiteness checks each. Non-finite gradients take RLlib's own two steps.
+
+    One result differs: RLlib logs a gradient norm of 0.0 for every module with an
+    optimizer that was not in the update; this logs norms of trained modules only. Episodes
+    (the standard sampler) and several Learners take RLlib's ``update`` unchanged.
+    (``build_config`` sets no ``torch.compile``, grad scaler or torch lr scheduler, which
+    this update does not know.)
 
     It also clocks its own updates: RLlib's ``learner_update_timer`` is an exponential
     average over iterations (coefficient 0.01), so it mostly repeats the first iteration.
@@ -309,19 +333,100 @@ class LeaguePPOLearner(PPOTorchLearner):
     update_seconds = 0.0  # wall time of ``update`` calls since the last ``take_update_seconds``
 
     def configure_optimizers_for_module(self, module_id: str, config: Any = None) -> None:
-        if any(True for _ in self.module[module_id].parameters()):
-            super().configure_optimizers_for_module(module_id=module_id, config=config)
+        """RLlib's Adam (``TorchLearner``'s), stepping all tensors in foreach passes (the
+        same arithmetic as its default per-tensor loop on CPU)."""
+        params = list(self.module[module_id].parameters())
+        if params:
+            optimizer = torch.optim.Adam(params, foreach=True)
+            self.register_optimizer(
+                module_id=module_id, optimizer=optimizer, params=params, lr_or_lr_schedule=config.lr
+            )
 
-    def update(self, *args: Any, **kwargs: Any) -> Any:
+    def update(
+        self,
+        batch: MultiAgentBatch | None = None,
+        *,
+        training_data: Any = None,
+        timesteps: dict[str, Any] | None = None,
+        num_epochs: int = 1,
+        minibatch_size: int | None = None,
+        shuffle_batch_per_epoch: bool = False,
+        **kwargs: Any,
+    ) -> Any:
         started = time.perf_counter()
         try:
-            return super().update(*args, **kwargs)
+            ready = batch if training_data is None else training_data.batch  # the LearnerGroup sends `training_data`
+            one_local_learner = self.config.num_learners <= 1
+            if isinstance(ready, MultiAgentBatch) and minibatch_size and not kwargs and one_local_learner:
+                return self._update_in_minibatches(
+                    ready, timesteps or {}, num_epochs, minibatch_size, shuffle_batch_per_epoch and num_epochs > 1
+                )
+            return super().update(
+                batch=batch, training_data=training_data, timesteps=timesteps, num_epochs=num_epochs,
+                minibatch_size=minibatch_size, shuffle_batch_per_epoch=shuffle_batch_per_epoch, **kwargs,
+            )
         finally:
             self.update_seconds += time.perf_counter() - started
+
+    def _update_in_minibatches(
+        self, batch: MultiAgentBatch, timesteps: dict[str, Any], num_epochs: int, minibatch_size: int, shuffle: bool
+    ) -> dict[str, Any]:
+        self.before_gradient_based_update(timesteps=timesteps)
+        compat.count_weights_update(self)
+        columns = {
+            module_id: convert_to_torch_tensor(dict(module_batch), device=self.device)
+            for module_id, module_batch in batch.policy_batches.items()
+            if self.should_module_be_updated(module_id, batch)
+        }
+        lengths = {module_id: len(next(iter(c.values()))) for module_id, c in columns.items()}
+        loss_per_module: dict[str, torch.Tensor] = {}
+        for rows in minibatch_rows(lengths, minibatch_size, num_epochs, shuffle):
+            minibatch = MultiAgentBatch(
+                {module_id: rows_of(columns[module_id], rows[module_id]) for module_id in columns},
+                env_steps=batch.env_steps(),  # as RLlib's minibatches: the whole batch's
+            )
+            fwd_out = self.module.forward_train(minibatch.policy_batches)
+            loss_per_module = self.compute_losses(fwd_out=fwd_out, batch=minibatch.policy_batches)
+            gradients = self.compute_gradients(loss_per_module)
+            if not self._clip_and_step(list(columns)):
+                self.apply_gradients(self.postprocess_gradients(gradients))
+            compat.log_trained_minibatch(self, minibatch)
+        for module_id, loss in loss_per_module.items():  # as RLlib: the last minibatch's
+            self.metrics.log_value(key=(module_id, self.TOTAL_LOSS_KEY), value=loss, window=1)
+        self.after_gradient_based_update(timesteps=timesteps)
+        return self.metrics.reduce()
+
+    def _clip_and_step(self, module_ids: list[str]) -> bool:
+        """Clip the gradients of each optimizer of ``module_ids`` by their global norm and step
+        it, logging the norm, as RLlib's postprocessing does; nothing (False) unless every norm
+        is finite and every module clips by global norm without logging gradients."""
+        norms = []
+        for module_id in module_ids:
+            config = self.config.get_config_for_module(module_id)
+            if config.grad_clip_by != "global_norm" or config.log_gradients:
+                return False
+            for name, optimizer in self.get_optimizers_for_module(module_id):
+                params = [p for group in optimizer.param_groups for p in group["params"] if p.grad is not None]
+                norm = torch.nn.utils.get_total_norm([p.grad for p in params], foreach=True)
+                if not torch.isfinite(norm):
+                    return False
+                norms.append((module_id, config.grad_clip, name, optimizer, params, norm))
+        for module_id, grad_clip, name, optimizer, params, norm in norms:
+            if grad_clip:
+                torch.nn.utils.clip_grads_with_norm_(params, grad_clip, norm, foreach=True)
+                self.metrics.log_value(key=(module_id, f"gradients_{name}_global_norm"), value=norm, window=1)
+            optimizer.step()
+        return True
 
     def take_update_seconds(self) -> float:
         seconds, self.update_seconds = self.update_seconds, 0.0
         return seconds
+
+
+def rows_of(columns: dict[str, torch.Tensor], rows: np.ndarray) -> SampleBatch:
+    """The ``rows`` of every column, in that order."""
+    index = torch.from_numpy(rows)
+    return SampleBatch({key: column.index_select(0, index.to(column.device)) for key, column in columns.items()})
 
 
 def take_learning_seconds(algo: Algorithm) -> float:

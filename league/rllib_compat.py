@@ -14,6 +14,7 @@ import numpy as np
 from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 from ray.rllib.env.single_agent_episode import SingleAgentEpisode
 from ray.rllib.env.utils.infinite_lookback_buffer import InfiniteLookbackBuffer
+from ray.rllib.policy.sample_batch import MultiAgentBatch
 
 RAY_VERSION = "2.60.0"
 
@@ -46,6 +47,21 @@ def env_runner_callbacks(env_runner: Any) -> list[Any]:
 def count_sampled_env_steps(env_runner: Any, env_steps: int) -> None:
     """Count ``env_steps`` in the runner's own sampled-steps counter, as RLlib's ``sample`` does."""
     env_runner._log_env_steps(metric=env_runner._metrics_num_env_steps_sampled, num_steps=env_steps)
+
+
+# ---------------------------------------------------------------- Learner (for a subclass of RLlib's Learner)
+def count_weights_update(learner: Any) -> None:
+    """Advance the Learner's weights sequence number, as ``Learner.update`` does once per call
+    (the EnvRunners' weight sync and the ``weights_seq_no`` metric read it)."""
+    learner._weights_seq_no += 1
+
+
+def log_trained_minibatch(learner: Any, minibatch: MultiAgentBatch) -> None:
+    """Count one trained minibatch in the Learner's metrics and Ray metrics, as
+    ``Learner.update`` does after each (module and env steps trained, batch size, weights
+    sequence number)."""
+    learner._log_metrics(batch=minibatch)
+    learner._log_steps_trained_metrics(minibatch)
 
 
 # ---------------------------------------------------------------- episodes

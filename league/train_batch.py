@@ -19,9 +19,14 @@ This is the computation of RLlib's ``GeneralAdvantageEstimation`` learner connec
 the same steps, with one difference: advantages are standardised over the real steps
 only (RLlib also counts the extra bootstrap step it appends to every chunk, whose
 advantage is 0), as CleanRL's PPO does. ``tests/test_fast_path.py`` checks the two.
+
+``minibatch_rows`` is the order in which RLlib's Learner passes over such a batch, for a
+Learner that slices the arrays itself (``league.rllib_bridge.LeaguePPOLearner``).
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -57,3 +62,38 @@ def potential_shaping(potentials: np.ndarray, ended: np.ndarray, gamma: float) -
 def standardized(advantages: np.ndarray) -> np.ndarray:
     """Zero mean, unit standard deviation (the floor 1e-4 as RLlib's connector has it)."""
     return (advantages - advantages.mean()) / max(1e-4, float(advantages.std()))
+
+
+def minibatch_rows(
+    lengths: dict[str, int], minibatch_size: int, num_epochs: int, shuffle: bool
+) -> Iterator[dict[str, np.ndarray]]:
+    """Row indices of each minibatch, per module, in the order RLlib's ``MiniBatchCyclicIterator``
+    takes them (Ray 2.60), drawing the same shuffles from NumPy's global generator.
+
+    Each module's rows are read in order, ``minibatch_size`` at a time; a minibatch that
+    reaches the end of the rows takes the rest from the start again, and every time the end
+    is reached (the last epoch's too) that module's rows are shuffled. Minibatches come until
+    every module's rows were passed ``num_epochs`` times, so a module with fewer rows takes
+    more passes.
+    """
+    if min(lengths.values(), default=1) < 1:
+        raise ValueError(f"a module without rows cannot be passed over: {lengths}")
+    order = {module_id: np.arange(n) for module_id, n in lengths.items()}
+    start = dict.fromkeys(lengths, 0)
+    passes = dict.fromkeys(lengths, 0)
+    while lengths and min(passes.values()) < num_epochs:
+        minibatch = {}
+        for module_id, n in lengths.items():
+            s, needed, pieces = start[module_id], minibatch_size, []
+            while s + needed >= n:
+                pieces.append(order[module_id][s:])
+                needed -= n - s
+                s = 0
+                passes[module_id] += 1
+                if shuffle:
+                    order[module_id] = order[module_id][np.random.permutation(n)]
+            if needed > 0:
+                pieces.append(order[module_id][s : s + needed])
+            start[module_id] = s + needed
+            minibatch[module_id] = np.concatenate(pieces)
+        yield minibatch

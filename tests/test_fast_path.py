@@ -1,5 +1,6 @@
 """The fast path: PPO's training batch from the sampler's arrays equals RLlib's from episodes."""
 
+import copy
 import numpy as np
 import pytest
 import ray
@@ -7,12 +8,18 @@ import torch
 
 from league.config import RunConfig
 from league.players import Player
-from league.rllib_bridge import MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable
 from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
-from league.train_batch import gae, potential_shaping
+from league.rllib_bridge import (
+    MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable, training_batch,
+)
+from league.train_batch import gae, minibatch_rows, potential_shaping
+from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
 from ray.rllib.core.columns import Columns
 from ray.rllib.evaluation.postprocessing import Postprocessing
+from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
+from ray.rllib.utils.metrics import ALL_MODULES, NUM_ENV_STEPS_SAMPLED_LIFETIME
+from ray.rllib.utils.minibatch_utils import MiniBatchCyclicIterator
 
 GAMES = 6
 ATTACKER = Player(id=1, side="attacker", kind="learner", version=0, reward_method=3)
@@ -222,3 +229,104 @@ def test_the_targeters_shaping_reaches_its_rows_and_no_others(algo):
     # float32 columns of advantages of size ~10: rounding ~1e-6.
     np.testing.assert_allclose(difference[:targeter_rows], added[played], rtol=0, atol=1e-5)
     np.testing.assert_array_equal(difference[targeter_rows:], 0.0)
+
+
+@pytest.mark.parametrize("epochs, shuffle", [(3, True), (1, True), (2, False)])
+def test_minibatch_rows_are_rllibs_minibatches(epochs, shuffle):
+    # Two modules of different lengths, neither a multiple of the minibatch size: minibatches
+    # that wrap around, and the shorter module passed over more often than `epochs`.
+    lengths = {"team": 23, "attacker": 10}
+    batch = MultiAgentBatch({m: SampleBatch({"row": np.arange(n)}) for m, n in lengths.items()}, env_steps=10)
+    np.random.seed(7)
+    rllib = [
+        {m: np.asarray(b["row"]) for m, b in minibatch.policy_batches.items()}
+        for minibatch in MiniBatchCyclicIterator(
+            batch, num_epochs=epochs, minibatch_size=4, shuffle_batch_per_epoch=shuffle
+        )
+    ]
+    np.random.seed(7)
+    ours = list(minibatch_rows(lengths, 4, epochs, shuffle))
+    assert len(ours) == len(rllib) == -(-23 * epochs // 4)  # the longer module's passes decide
+    for mine, theirs in zip(ours, rllib):
+        assert mine.keys() == theirs.keys()
+        for m in mine:
+            np.testing.assert_array_equal(mine[m], theirs[m])
+    np.random.seed(7)
+    list(MiniBatchCyclicIterator(batch, num_epochs=epochs, minibatch_size=4, shuffle_batch_per_epoch=shuffle))
+    after_rllib = np.random.random()
+    np.random.seed(7)
+    list(minibatch_rows(lengths, 4, epochs, shuffle))
+    assert np.random.random() == after_rllib  # the same draws: what follows is unchanged too
+
+
+def one_update(learner, batch, start, update):
+    """``update`` (ours or RLlib's) of ``batch`` from the Learner state ``start``: the trained
+    modules' weights after it and the results it reports."""
+    state = copy.deepcopy(start["state"])  # the restored optimizer keeps the arrays it is given as its tensors
+    learner.set_state(state)  # optimizer, metrics, weights sequence number
+    learner.module.set_state(state["rl_module"])  # (`set_state` skips weights older than the Learner's)
+    for module_id, coeff in start["kl_coeffs"].items():  # PPO's KL coefficient lives outside the state
+        learner.curr_kl_coeffs_per_module[module_id].data.fill_(coeff)
+    np.random.seed(11)  # RLlib shuffles with NumPy's global generator
+    own = MultiAgentBatch({m: SampleBatch(dict(b)) for m, b in batch.policy_batches.items()}, batch.env_steps())
+    results = update(
+        learner, batch=own, timesteps={NUM_ENV_STEPS_SAMPLED_LIFETIME: 0}, num_epochs=3, minibatch_size=128,
+        shuffle_batch_per_epoch=True,
+    )
+    weights = {
+        m: {k: v.numpy().copy() for k, v in learner.module[m].state_dict().items()} for m in batch.policy_batches
+    }
+    reported = {m: {k: stats.peek() for k, stats in values.items()} for m, values in results.items()}
+    return weights, reported
+
+
+def compare_updates(algo, corrupt=None):
+    """Our Learner's update and RLlib's ``Learner.update`` of one batch of the attacker and the
+    team (300 rows and a few hundred: minibatches of 128 wrap around), from the same state
+    (after one update of a first batch: Adam has moments, the weights sequence number is > 0)."""
+    set_trainable(algo, [ATTACKER.name, TEAM.name])
+    runner = algo.env_runner
+    first, batch = (training_batch([runner.sample_training_data(300)], env_steps=300) for _ in range(2))
+    if corrupt:
+        corrupt(batch)
+
+    def both(learner):
+        one_update(learner, first, {"state": learner.get_state(), "kl_coeffs": {}}, type(learner).update)
+        start = {
+            "state": copy.deepcopy(learner.get_state()),  # (the optimizer's state shares the live tensors' memory)
+            "kl_coeffs": {m: learner.curr_kl_coeffs_per_module[m].item() for m in batch.policy_batches},
+        }
+        ours = one_update(learner, batch, start, type(learner).update)
+        return ours, one_update(learner, batch, start, PPOTorchLearner.update)
+
+    [call] = algo.learner_group.foreach_learner(both)
+    return call.get()
+
+
+def test_our_update_trains_as_rllibs_update(algo):
+    (ours, ours_reported), (rllib, rllib_reported) = compare_updates(algo)
+    # The same float32 operations in the same order (minibatch rows, loss, clipping
+    # coefficient, Adam's foreach passes are its per-tensor arithmetic): equal to the bit.
+    for module_id in (ATTACKER.name, TEAM.name):
+        for name, weight in rllib[module_id].items():
+            np.testing.assert_array_equal(ours[module_id][name], weight, err_msg=f"{module_id} {name}")
+    assert ours_reported.keys() == rllib_reported.keys()
+    for module_id in (ATTACKER.name, TEAM.name, ALL_MODULES):
+        theirs = {k: v for k, v in rllib_reported[module_id].items() if "throughput" not in k}  # per second
+        np.testing.assert_equal({k: ours_reported[module_id].get(k) for k in theirs}, theirs, err_msg=module_id)
+    team, attacker = ours_reported[TEAM.name], ours_reported[ATTACKER.name]
+    # Both modules in every minibatch, until each row was passed 3 times (the attacker has 300).
+    assert team["num_module_steps_trained"] == attacker["num_module_steps_trained"] >= 3 * 300
+    assert {"policy_loss", "vf_loss", "entropy", "mean_kl_loss", "curr_kl_coeff", "total_loss"} <= team.keys()
+
+
+def test_non_finite_gradients_are_handled_as_rllib_does(algo):
+    # A NaN advantage makes every gradient NaN: RLlib zeroes them and still steps Adam.
+    def nan_advantage(batch):
+        batch.policy_batches[TEAM.name][Postprocessing.ADVANTAGES][5] = np.nan
+
+    (ours, _), (rllib, _) = compare_updates(algo, nan_advantage)
+    assert all(np.isfinite(w).all() for w in rllib[TEAM.name].values())
+    for module_id in (ATTACKER.name, TEAM.name):
+        for name, weight in rllib[module_id].items():
+            np.testing.assert_array_equal(ours[module_id][name], weight, err_msg=f"{module_id} {name}")

@@ -1,0 +1,118 @@
+"""Seconds of one team update of the Learner: ``LeaguePPOLearner``'s against RLlib's own.
+
+Builds the algorithm of ``--config`` (the fast sampler, one torch thread), samples one
+training batch of the team learner playing a (frozen, untrained) attacker, then times, in
+turn, ``--rounds`` times each, the two updates of that batch (the team's update of the team
+phase: T and D share one module, so 2 rows per env step; minibatches and epochs as
+configured), each from the same weights and optimizer state:
+
+* ``rllib``: RLlib's ``Learner.update`` with RLlib's Adam (per-tensor steps), as the
+  Learner updated before it had an update of its own;
+* ``league``: ``LeaguePPOLearner.update`` (its Adam steps in foreach passes).
+
+Both take the same gradient steps (``tests/test_fast_path.py``); one process runs both, so
+a shared machine's load moves both alike.
+
+    PYTHONPATH=. .venv/bin/python bench/learner_update.py --config attacker_method2 --rounds 8
+
+``--profile FILE`` writes a cProfile of the ``league`` rounds. The last line reads ``league
+L s, rllib R s, league/rllib Q (medians of N rounds; CPU: ...)``: wall seconds, and the CPU
+seconds of this process, which other processes on a shared machine move less.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import cProfile
+import statistics
+import time
+
+import ray
+import torch
+
+from league.config import load_config
+from league.players import Player
+from league.rllib_bridge import MatchPlan, build_config, minibatch_size, set_trainable, training_batch
+from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
+from ray.rllib.utils.metrics import NUM_ENV_STEPS_SAMPLED_LIFETIME, NUM_MODULE_STEPS_TRAINED_LIFETIME
+
+ATTACKER = Player(id=1, side="attacker", kind="learner", version=0, reward_method=2)
+TEAM = Player(id=2, side="team", kind="learner", version=0)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--config", default="attacker_method2")
+    parser.add_argument("--rounds", type=int, default=8)
+    parser.add_argument("--profile", default=None, help="write a cProfile of the league rounds here")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    run = load_config(args.config, ["resources.num_env_runners=0", "resources.sampler=fast"])
+    ray.init(address="local", num_cpus=1, include_dashboard=False)
+    try:
+        plan = MatchPlan([TEAM.modules()], [[{"attacker": ATTACKER.name}]], [[1.0]], seed=0)
+        algo = build_config(run, [ATTACKER, TEAM], plan).build_algo()
+        set_trainable(algo, [TEAM.name])
+        config = algo.config
+        data = algo.env_runner.sample_training_data(config.total_train_batch_size)
+        batch = training_batch([data], env_steps=config.total_train_batch_size)
+        size = minibatch_size(config, batch)
+        [learner] = [r.get() for r in algo.learner_group.foreach_learner(lambda learner: learner)]  # the local one
+        start = copy.deepcopy(learner.get_state(components=["rl_module", "optimizer"]))
+        profiler = cProfile.Profile() if args.profile else None
+
+        def update(arm: str) -> tuple[float, float]:
+            learner.set_state(copy.deepcopy(start))  # (a restored optimizer keeps the arrays it is given)
+            learner.module.set_state(start["rl_module"])
+            for group in learner.get_optimizer(TEAM.name).param_groups:
+                group["foreach"] = arm == "league"  # RLlib's Adam steps tensor by tensor
+            method = type(learner).update if arm == "league" else PPOTorchLearner.update
+            fresh = training_batch([data], env_steps=config.total_train_batch_size)  # RLlib's shuffles it in place
+            if profiler and arm == "league":
+                profiler.enable()
+            began, cpu = time.perf_counter(), time.process_time()
+            method(
+                learner,
+                batch=fresh,
+                timesteps={NUM_ENV_STEPS_SAMPLED_LIFETIME: 0, NUM_MODULE_STEPS_TRAINED_LIFETIME: 0},
+                num_epochs=config.num_epochs,
+                minibatch_size=size,
+                shuffle_batch_per_epoch=config.shuffle_batch_per_epoch,
+            )
+            wall, cpu = time.perf_counter() - began, time.process_time() - cpu
+            if profiler:
+                profiler.disable()
+            return wall, cpu
+
+        arms = ("rllib", "league")
+        for arm in arms:  # warm-up
+            update(arm)
+        times = {arm: [] for arm in arms}
+        for _ in range(args.rounds):
+            for arm in arms:
+                times[arm].append(update(arm))
+        if profiler:
+            profiler.dump_stats(args.profile)
+        rows = len(batch.policy_batches[TEAM.name])
+        print(f"rows {rows}, minibatches of {size}: {config.num_epochs * -(-rows // size)}")
+        for arm in arms:
+            walls, cpus = (" ".join(f"{t[which]:.3f}" for t in times[arm]) for which in (0, 1))
+            print(f"{arm} wall s: {walls} | CPU s: {cpus}")
+
+        def medians(which: int) -> str:
+            league, rllib = (statistics.median(t[which] for t in times[arm]) for arm in ("league", "rllib"))
+            ratios = [a[which] / b[which] for a, b in zip(times["league"], times["rllib"])]
+            return (
+                f"league {league:.3f} s, rllib {rllib:.3f} s, league/rllib {statistics.median(ratios):.2f} "
+                f"(per round {min(ratios):.2f} to {max(ratios):.2f})"
+            )
+
+        print(f"{medians(0)} (medians of {args.rounds} rounds; CPU: {medians(1)})")
+        algo.stop()
+    finally:
+        ray.shutdown()
+
+
+if __name__ == "__main__":
+    main()
