@@ -60,6 +60,8 @@ PAPER_SIZE = 15
 RICH_SIZE = 21
 ROLE_SIZE = 2
 GLOBAL_STATE_SIZE = 22
+# Columns of the global state (layout in the module docstring).
+STATE_T_TERMINAL, STATE_TIME_LEFT = 20, 21
 # Whom each agent sees first and second: opponent first.
 OTHERS = {ATTACKER: (TARGETER, DEFENDER), TARGETER: (ATTACKER, DEFENDER), DEFENDER: (ATTACKER, TARGETER)}
 ROLE_ONE_HOT = {TARGETER: (1.0, 0.0), DEFENDER: (0.0, 1.0)}
@@ -165,7 +167,7 @@ def global_state(config: GameConfig, positions: np.ndarray, headings: np.ndarray
 
 def terminal_distance(config: GameConfig, states: np.ndarray) -> np.ndarray:
     """T's distance to the terminal, read from global states (any leading axes)."""
-    return np.asarray(states[..., 20], dtype=np.float64) * config.position_scale
+    return np.asarray(states[..., STATE_T_TERMINAL], dtype=np.float64) * config.position_scale
 
 
 def decode_global_state(config: GameConfig, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -176,4 +178,4 @@ def decode_global_state(config: GameConfig, states: np.ndarray) -> tuple[np.ndar
     angles = states[:, 9:18].reshape(n, 3, 3)
     yaw = np.mod(np.arctan2(angles[..., 1], angles[..., 0]), 2 * np.pi)
     headings = np.stack((yaw, angles[..., 2] * (np.pi / 2)), axis=-1)
-    return positions, headings, states[:, 21]
+    return positions, headings, states[:, STATE_TIME_LEFT]

@@ -8,6 +8,7 @@ import torch
 
 from league.config import RunConfig
 from league.players import Player
+from envs.agents import Outcome
 from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
 from league.rllib_bridge import (
     MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable, training_batch,
@@ -218,7 +219,7 @@ def test_the_targeters_shaping_reaches_its_rows_and_no_others(algo):
     gamma, lambda_ = RUN.ppo.discount("team")
     index = runner.rollout.module_ids.index(TEAM.name)
     played = rows.modules[:t, :, 1] == index
-    ended = (rows.outcome[:t] != 0).astype(float)
+    ended = (rows.outcome[:t] != int(Outcome.RUNNING)).astype(float)
     obs = rows.observations["targeter"][: t + 1]
     potentials = -3.0 * terminal_distance(runner.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
     zeros = np.zeros(ended.shape)
