@@ -254,8 +254,11 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             if on_core and isinstance(module, ScriptedModule):
                 return ScriptedOnState(module.name)
 
+            # `LeagueSettings.frozen_players_explore`: a frozen snapshot may play its mean.
+            explores = explore and (module.model_config.get("explore_when_frozen", True) or self._is_trained(module_id))
+
             def forward(obs: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-                outputs = _forward(module, torch.from_numpy(obs), explore)
+                outputs = _forward(module, torch.from_numpy(obs), explores)
                 return outputs.pop(Columns.ACTIONS), outputs
 
             return forward

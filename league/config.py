@@ -171,6 +171,10 @@ class LeagueSettings(Strict):
     The phase-end rule leaves the exploiters' games and env steps out (it measures the
     learners' progress as without exploiters), so a phase with exploiters samples about
     twice the env steps."""
+    frozen_players_explore: bool = True
+    """In training, frozen snapshots sample their actions from their policy (``true``) or play
+    its mean (``false``), as every player does in evaluation. ``false`` trains a learner against
+    exactly the players it is then measured against. Not on ``resources.sampler: standard``."""
     scripted_attackers: list[str] = Field(default_factory=lambda: ["lead_intercept"])
     scripted_teams: list[ScriptedTeam] = Field(default_factory=lambda: [ScriptedTeam()])
 
@@ -239,6 +243,11 @@ class RunConfig(Strict):
             raise ValueError("ppo.minibatch_counts: env_steps needs resources.sampler: fast (RLlib's PPO has one minibatch size)")
         if self.ppo.targeter_shaping and self.resources.sampler != "fast":
             raise ValueError("ppo.targeter_shaping needs resources.sampler: fast (RLlib's learner connectors would not shape)")
+        if not self.league.frozen_players_explore and self.resources.sampler == "standard":
+            raise ValueError(
+                "league.frozen_players_explore: false needs resources.sampler: fast or batched "
+                "(RLlib's standard runner samples every module alike)"
+            )
         if self.ppo.discount("team") != self.ppo.discount("attacker") and self.resources.sampler != "fast":
             raise ValueError(
                 "ppo.team_gamma and ppo.team_lambda_ need resources.sampler: fast "
