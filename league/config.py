@@ -37,6 +37,9 @@ class PPOSettings(Strict):
     """PPO hyperparameters, shared by the attacker and the team learner."""
 
     lr: float = Field(3e-4, gt=0)
+    lr_schedule: list[tuple[Annotated[int, Field(ge=0)], Annotated[float, Field(gt=0)]]] | None = None
+    """``[[env_steps, lr], ...]``, from 0 in increasing env steps: the learning rate interpolated
+    linearly over the run's sampled env steps (RLlib's schedule), in place of ``lr``."""
     gamma: float = Field(0.99, gt=0, le=1)
     lambda_: float = Field(0.95, ge=0, le=1)
     team_gamma: float | None = Field(None, gt=0, le=1)
@@ -237,6 +240,9 @@ class RunConfig(Strict):
 
     @model_validator(mode="after")
     def _check(self) -> "RunConfig":
+        schedule = self.ppo.lr_schedule
+        if schedule is not None and (schedule[0][0] != 0 or any(a[0] >= b[0] for a, b in zip(schedule, schedule[1:]))):
+            raise ValueError("ppo.lr_schedule must start at 0 env steps and list increasing env steps")
         if self.ppo.minibatch_size > self.ppo.train_batch_size:
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
         if self.ppo.minibatch_counts != "rows" and self.resources.sampler != "fast":

@@ -466,7 +466,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
         )
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs=specs))
         .training(
-            lr=ppo.lr,
+            lr=ppo.lr if ppo.lr_schedule is None else [list(point) for point in ppo.lr_schedule],
             gamma=ppo.gamma,
             lambda_=ppo.lambda_,
             clip_param=ppo.clip_param,
