@@ -376,6 +376,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                     values[observed] = module.compute_values({Columns.OBS: torch.from_numpy(obs[observed])}).numpy()
                 if agent == "attacker" and method:
                     rewards = rows.attacker_rewards[:t, :, method - 1]  # this module's reward method
+                elif module_config.get("team_reward") == "shared":  # `PPOSettings.team_reward`
+                    rewards = rows.rewards["targeter"][:t] + rows.rewards["defender"][:t]
                 else:
                     rewards = rows.rewards[agent][:t]
                 shaping = module_config.get("targeter_shaping")

@@ -57,6 +57,10 @@ class PPOSettings(Strict):
     Without it T never found the terminal sphere (radius ``v_T``, one step of T) by exploring,
     and trained teams won only by D's interceptions (README, "The team's learning"). Returns
     in curves, evaluations and metrics stay unshaped. Needs ``resources.sampler: fast``."""
+    team_reward: Literal["own", "shared"] = "own"
+    """What T and D learn from: ``own``, each its own reward (Eq. 10, 11); ``shared``, each the
+    team's, the sum of both per step (what the team return measures), so that D is paid for
+    the steps of T that its interception saves. Needs ``resources.sampler: fast``."""
     clip_param: float = Field(0.2, gt=0)
     entropy_coeff: float = Field(0.0, ge=0)
     vf_loss_coeff: float = Field(0.5, ge=0)
@@ -247,6 +251,8 @@ class RunConfig(Strict):
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
         if self.ppo.minibatch_counts != "rows" and self.resources.sampler != "fast":
             raise ValueError("ppo.minibatch_counts: env_steps needs resources.sampler: fast (RLlib's PPO has one minibatch size)")
+        if self.ppo.team_reward != "own" and self.resources.sampler != "fast":
+            raise ValueError("ppo.team_reward: shared needs resources.sampler: fast (RLlib's learner pays each agent its own reward)")
         if self.ppo.targeter_shaping and self.resources.sampler != "fast":
             raise ValueError("ppo.targeter_shaping needs resources.sampler: fast (RLlib's learner connectors would not shape)")
         if not self.league.frozen_players_explore and self.resources.sampler == "standard":
