@@ -344,6 +344,13 @@ class LeaguePPOLearner(PPOTorchLearner):
                 module_id=module_id, optimizer=optimizer, params=params, lr_or_lr_schedule=config.lr
             )
 
+    @staticmethod
+    def _set_optimizer_lr(optimizer: torch.optim.Optimizer, lr: Any) -> None:
+        # An lr schedule (`ppo.lr_schedule`) hands its first value as a tensor, which a
+        # foreach Adam refuses; later values come as floats.
+        for group in optimizer.param_groups:
+            group["lr"] = float(lr)
+
     def update(
         self,
         batch: MultiAgentBatch | None = None,
