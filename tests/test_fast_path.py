@@ -200,6 +200,23 @@ def test_minibatches_counted_in_env_steps_give_the_team_twice_the_rows(algo):  #
         own.stop()
 
 
+def test_the_learning_rate_follows_its_schedule_over_env_steps(algo):  # `algo`: Ray is up
+    run = RunConfig(**{**RUN.model_dump(), "ppo": {**RUN.ppo.model_dump(), "lr_schedule": [[0, 0.01], [600, 0.001]]}})
+    plan = MatchPlan([{"attacker": ATTACKER.name}], [[SCRIPTED_TEAM.modules()]], [[1.0]], seed=0)
+    own = build_config(run, [ATTACKER, SCRIPTED_TEAM], plan).build_algo()
+    try:
+        set_trainable(own, [ATTACKER.name])
+        rates = []
+        for _ in range(3):
+            learner = own.train()["learners"][ATTACKER.name]
+            rates.append(learner["default_optimizer_learning_rate"])
+        # Set after each update from the env steps sampled so far (300 per iteration);
+        # float32 schedule values: 1e-9.
+        np.testing.assert_allclose(rates, [0.0055, 0.001, 0.001], rtol=0, atol=1e-9)
+    finally:
+        own.stop()
+
+
 def test_the_targeters_shaping_reaches_its_rows_and_no_others(algo):
     # `ppo.targeter_shaping`: only T's rewards are shaped (D's and the attacker's stay as they were).
     set_trainable(algo, [ATTACKER.name, TEAM.name])
@@ -230,6 +247,62 @@ def test_the_targeters_shaping_reaches_its_rows_and_no_others(algo):
     # float32 columns of advantages of size ~10: rounding ~1e-6.
     np.testing.assert_allclose(difference[:targeter_rows], added[played], rtol=0, atol=1e-5)
     np.testing.assert_array_equal(difference[targeter_rows:], 0.0)
+
+
+def test_a_shared_team_reward_pays_t_and_d_the_sum_of_both(algo):
+    # `ppo.team_reward: shared`: T's rows learn from r_T + r_D, D's rows too; the attacker's stay.
+    set_trainable(algo, [ATTACKER.name, TEAM.name])
+    runner = algo.env_runner
+    runner._reset_all()
+    done, rows, t = runner._play(40, None, True, False)
+    team = runner.module[TEAM.name]
+    own = runner._training_data(rows, t)
+    team.model_config["team_reward"] = "shared"
+    try:
+        shared = runner._training_data(rows, t)
+    finally:
+        team.model_config["team_reward"] = "own"
+    np.testing.assert_array_equal(shared[ATTACKER.name][Postprocessing.ADVANTAGES], own[ATTACKER.name][Postprocessing.ADVANTAGES])
+    # GAE is linear in the rewards: T's advantages gain the GAE of D's rewards alone (values
+    # 0), D's gain that of T's. The team's columns hold T's rows, then D's.
+    gamma, lambda_ = RUN.ppo.discount("team")
+    index = runner.rollout.module_ids.index(TEAM.name)
+    played = rows.modules[:t, :, 1] == index  # T and D are played by the same module in every game
+    ended = (rows.outcome[:t] != int(Outcome.RUNNING)).astype(float)
+    zeros = np.zeros(ended.shape)
+    from_d, _ = gae(rows.rewards["defender"][:t], zeros, zeros[0], ended, gamma, lambda_)
+    from_t, _ = gae(rows.rewards["targeter"][:t], zeros, zeros[0], ended, gamma, lambda_)
+    targeter_rows = int(played.sum())
+    assert 0 < targeter_rows < len(own[TEAM.name][Columns.OBS])
+    difference = shared[TEAM.name][Postprocessing.ADVANTAGES] - own[TEAM.name][Postprocessing.ADVANTAGES]
+    # float32 columns of advantages of size ~1: rounding ~1e-7.
+    np.testing.assert_allclose(difference[:targeter_rows], from_d[played], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(difference[targeter_rows:], from_t[played], rtol=0, atol=1e-6)
+
+
+def test_frozen_players_play_their_mean_unless_they_explore(algo):
+    # `league.frozen_players_explore: false`: a frozen module acts on its policy's mean while
+    # the trained one keeps sampling.
+    set_trainable(algo, [TEAM.name])
+    runner = algo.env_runner
+    attacker = runner.module[ATTACKER.name]
+    for explore_when_frozen in (True, False):
+        attacker.model_config["explore_when_frozen"] = explore_when_frozen
+        try:
+            runner._reset_all()
+            _, rows, t = runner._play(10, None, True, False, episodes=False)
+        finally:
+            attacker.model_config["explore_when_frozen"] = True
+        with torch.no_grad():
+            means = attacker.deterministic_action(torch.from_numpy(rows.observations["attacker"][:t])).numpy()
+        team = runner.module[TEAM.name]
+        with torch.no_grad():
+            team_means = team.deterministic_action(torch.from_numpy(rows.observations["targeter"][:t])).numpy()
+        assert not np.allclose(rows.actions["targeter"][:t], team_means)
+        if explore_when_frozen:
+            assert not np.allclose(rows.actions["attacker"][:t], means)
+        else:
+            np.testing.assert_array_equal(rows.actions["attacker"][:t], means)
 
 
 @pytest.mark.parametrize("epochs, shuffle", [(3, True), (1, True), (2, False)])

@@ -42,6 +42,11 @@ def write(tmp_path, text):
         ("name: x\nppo: {minibatch_counts: games}\n", "ppo.minibatch_counts"),
         ("name: x\nppo: {targeter_shaping: -1}\n", "ppo.targeter_shaping"),
         ("name: x\nppo: {targeter_shaping: 3}\nresources: {sampler: batched}\n", "targeter_shaping"),
+        ("name: x\nppo: {team_reward: shared}\nresources: {sampler: standard}\n", "team_reward"),
+        ("name: x\nppo: {team_reward: mine}\n", "ppo.team_reward"),
+        ("name: x\nleague: {frozen_players_explore: false}\nresources: {sampler: standard}\n", "frozen_players_explore"),
+        ("name: x\nppo: {lr_schedule: [[100, 0.001]]}\n", "lr_schedule"),
+        ("name: x\nppo: {lr_schedule: [[0, 0.001], [0, 0.0001]]}\n", "lr_schedule"),
     ],
 )
 def test_invalid_config_names_the_key(tmp_path, text, key):
