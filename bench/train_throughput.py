@@ -136,8 +136,10 @@ def main() -> int:
         results = {}
         for sampler in args.samplers:
             # Only the attacker trains here; RLlib's own pipeline (batched, standard) has no team
-            # discount and no shaping of T's rewards.
-            team = [] if sampler == "fast" else ["ppo.team_gamma=null", "ppo.team_lambda_=null", "ppo.targeter_shaping=0"]
+            # discount, no shaping of T's rewards and no shared team reward.
+            team = [] if sampler == "fast" else [
+                "ppo.team_gamma=null", "ppo.team_lambda_=null", "ppo.targeter_shaping=0", "ppo.team_reward=own",
+            ]
             run = load_config(config, [*args.overrides, f"resources.sampler={sampler}", *team])
             torch.set_num_threads(run.resources.threads_for(1))
             steps = args.standard_env_steps or args.env_steps if sampler == "standard" else args.env_steps
