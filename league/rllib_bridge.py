@@ -34,6 +34,7 @@ from league.batched_env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner,
 from league import rllib_compat as compat
 from league.config import RunConfig
 from league.modules import ActorCriticModule, ScriptedModule
+from league.ppo_loss import LossRows, PPOCoefficients, loss_stats, ppo_loss
 from league.players import Player
 from league.train_batch import minibatch_rows, standardized
 from ray.rllib.algorithms.algorithm import Algorithm
@@ -41,6 +42,7 @@ from ray.rllib.algorithms.ppo import PPO, PPOConfig
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.connectors.connector_v2 import ConnectorV2
+from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
@@ -60,7 +62,6 @@ from ray.rllib.utils.metrics import (
     SYNCH_WORKER_WEIGHTS_TIMER,
     TIMERS,
 )
-from ray.rllib.utils.torch_utils import convert_to_torch_tensor
 
 
 
@@ -356,8 +357,7 @@ class LeaguePPOLearner(PPOTorchLearner):
         started = time.perf_counter()
         try:
             ready = batch if training_data is None else training_data.batch  # the LearnerGroup sends `training_data`
-            one_local_learner = self.config.num_learners <= 1
-            if isinstance(ready, MultiAgentBatch) and minibatch_size and not kwargs and one_local_learner:
+            if isinstance(ready, MultiAgentBatch) and minibatch_size and not kwargs and self._has_own_loss(ready):
                 return self._update_in_minibatches(
                     ready, timesteps or {}, num_epochs, minibatch_size, shuffle_batch_per_epoch and num_epochs > 1
                 )
@@ -368,38 +368,63 @@ class LeaguePPOLearner(PPOTorchLearner):
         finally:
             self.update_seconds += time.perf_counter() - started
 
+    def _has_own_loss(self, batch: MultiAgentBatch) -> bool:
+        """Whether the learner's own update applies: one local Learner, and every module to
+        update an ``ActorCriticModule`` with a critic, its batch without a loss mask."""
+        if self.config.num_learners > 1:
+            return False
+        for module_id, module_batch in batch.policy_batches.items():
+            if self.should_module_be_updated(module_id, batch):
+                config = self.config.get_config_for_module(module_id)
+                own = isinstance(self.module[module_id], ActorCriticModule) and config.use_critic
+                if not own or Columns.LOSS_MASK in module_batch:
+                    return False
+        return True
+
     def _update_in_minibatches(
         self, batch: MultiAgentBatch, timesteps: dict[str, Any], num_epochs: int, minibatch_size: int, shuffle: bool
     ) -> dict[str, Any]:
         self.before_gradient_based_update(timesteps=timesteps)
         compat.count_weights_update(self)
-        columns = {
-            module_id: convert_to_torch_tensor(dict(module_batch), device=self.device)
-            for module_id, module_batch in batch.policy_batches.items()
-            if self.should_module_be_updated(module_id, batch)
-        }
-        lengths = {module_id: len(next(iter(c.values()))) for module_id, c in columns.items()}
+        modules = [m for m in batch.policy_batches if self.should_module_be_updated(m, batch)]
+        inputs = {m: LossRows(batch.policy_batches[m], self.device) for m in modules}
+        coefficients = {m: self._ppo_coefficients(m) for m in modules}
+        for m in modules:
+            self.module[m].train()  # as RLlib's forward_train
+        minibatches = list(minibatch_rows({m: inputs[m].length for m in modules}, minibatch_size, num_epochs, shuffle))
         loss_per_module: dict[str, torch.Tensor] = {}
-        for rows in minibatch_rows(lengths, minibatch_size, num_epochs, shuffle):
-            minibatch = MultiAgentBatch(
-                {module_id: rows_of(columns[module_id], rows[module_id]) for module_id in columns},
-                env_steps=batch.env_steps(),  # as RLlib's minibatches: the whole batch's
-            )
-            fwd_out = self.module.forward_train(minibatch.policy_batches)
-            loss_per_module = self.compute_losses(fwd_out=fwd_out, batch=minibatch.policy_batches)
+        for n, rows in enumerate(minibatches, start=1):
+            last = n == len(minibatches)  # RLlib's statistics keep the last minibatch's only (window 1)
+            for m in modules:
+                loss_per_module[m], terms = ppo_loss(self.module[m], inputs[m].take(rows[m]), coefficients[m])
+                if last:
+                    self.metrics.log_dict(loss_stats(terms), key=m, window=1)
             gradients = self.compute_gradients(loss_per_module)
-            if not self._clip_and_step(list(columns)):
+            if not self._clip_and_step(modules, log_norms=last):
                 self.apply_gradients(self.postprocess_gradients(gradients))
-            compat.log_trained_minibatch(self, minibatch)
+        compat.log_trained_minibatches(self, dict.fromkeys(modules, minibatch_size), batch.env_steps(), len(minibatches))
         for module_id, loss in loss_per_module.items():  # as RLlib: the last minibatch's
             self.metrics.log_value(key=(module_id, self.TOTAL_LOSS_KEY), value=loss, window=1)
         self.after_gradient_based_update(timesteps=timesteps)
         return self.metrics.reduce()
 
-    def _clip_and_step(self, module_ids: list[str]) -> bool:
+    def _ppo_coefficients(self, module_id: str) -> PPOCoefficients:
+        """The module's loss settings for this update: the entropy coefficient is stepped by
+        its scheduler and the KL coefficient adapted after an update, not during one."""
+        config = self.config.get_config_for_module(module_id)
+        return PPOCoefficients(
+            clip_param=config.clip_param,
+            vf_clip_param=config.vf_clip_param,
+            vf_loss_coeff=config.vf_loss_coeff,
+            entropy_coeff=self.entropy_coeff_schedulers_per_module[module_id].get_current_value(),
+            kl_coeff=self.curr_kl_coeffs_per_module[module_id] if config.use_kl_loss else None,
+        )
+
+    def _clip_and_step(self, module_ids: list[str], log_norms: bool) -> bool:
         """Clip the gradients of each optimizer of ``module_ids`` by their global norm and step
-        it, logging the norm, as RLlib's postprocessing does; nothing (False) unless every norm
-        is finite and every module clips by global norm without logging gradients."""
+        it, logging the norm if ``log_norms``, as RLlib's postprocessing does; nothing (False)
+        unless every norm is finite and every module clips by global norm without logging
+        gradients."""
         norms = []
         for module_id in module_ids:
             config = self.config.get_config_for_module(module_id)
@@ -414,19 +439,14 @@ class LeaguePPOLearner(PPOTorchLearner):
         for module_id, grad_clip, name, optimizer, params, norm in norms:
             if grad_clip:
                 torch.nn.utils.clip_grads_with_norm_(params, grad_clip, norm, foreach=True)
-                self.metrics.log_value(key=(module_id, f"gradients_{name}_global_norm"), value=norm, window=1)
+                if log_norms:
+                    self.metrics.log_value(key=(module_id, f"gradients_{name}_global_norm"), value=norm, window=1)
             optimizer.step()
         return True
 
     def take_update_seconds(self) -> float:
         seconds, self.update_seconds = self.update_seconds, 0.0
         return seconds
-
-
-def rows_of(columns: dict[str, torch.Tensor], rows: np.ndarray) -> SampleBatch:
-    """The ``rows`` of every column, in that order."""
-    index = torch.from_numpy(rows)
-    return SampleBatch({key: column.index_select(0, index.to(column.device)) for key, column in columns.items()})
 
 
 def take_learning_seconds(algo: Algorithm) -> float:
