@@ -389,8 +389,15 @@ class LeaguePPOLearner(PPOTorchLearner):
         modules = [m for m in batch.policy_batches if self.should_module_be_updated(m, batch)]
         inputs = {m: LossRows(batch.policy_batches[m], self.device) for m in modules}
         coefficients = {m: self._ppo_coefficients(m) for m in modules}
+        steps = self._clipped_steps(modules)
         for m in modules:
             self.module[m].train()  # as RLlib's forward_train
+        # RLlib sets every optimizer's gradients to None before each backward pass: here all
+        # once (modules outside the loss keep None), then the trained modules' each time.
+        for module_id in self.module.keys():
+            for _, optimizer in self.get_optimizers_for_module(module_id):
+                optimizer.zero_grad(set_to_none=True)
+        trained = [p for m in modules for _, o in self.get_optimizers_for_module(m) for g in o.param_groups for p in g["params"]]
         minibatches = list(minibatch_rows({m: inputs[m].length for m in modules}, minibatch_size, num_epochs, shuffle))
         loss_per_module: dict[str, torch.Tensor] = {}
         for n, rows in enumerate(minibatches, start=1):
@@ -399,9 +406,11 @@ class LeaguePPOLearner(PPOTorchLearner):
                 loss_per_module[m], terms = ppo_loss(self.module[m], inputs[m].take(rows[m]), coefficients[m])
                 if last:
                     self.metrics.log_dict(loss_stats(terms), key=m, window=1)
-            gradients = self.compute_gradients(loss_per_module)
-            if not self._clip_and_step(modules, log_norms=last):
-                self.apply_gradients(self.postprocess_gradients(gradients))
+            for p in trained:
+                p.grad = None
+            sum(loss_per_module.values()).backward()
+            if steps is None or not self._clip_and_step(steps, log_norms=last):
+                self.apply_gradients(self.postprocess_gradients(compat.gradients(self)))
         compat.log_trained_minibatches(self, dict.fromkeys(modules, minibatch_size), batch.env_steps(), len(minibatches))
         for module_id, loss in loss_per_module.items():  # as RLlib: the last minibatch's
             self.metrics.log_value(key=(module_id, self.TOTAL_LOSS_KEY), value=loss, window=1)
@@ -420,25 +429,33 @@ class LeaguePPOLearner(PPOTorchLearner):
             kl_coeff=self.curr_kl_coeffs_per_module[module_id] if config.use_kl_loss else None,
         )
 
-    def _clip_and_step(self, module_ids: list[str], log_norms: bool) -> bool:
-        """Clip the gradients of each optimizer of ``module_ids`` by their global norm and step
-        it, logging the norm if ``log_norms``, as RLlib's postprocessing does; nothing (False)
-        unless every norm is finite and every module clips by global norm without logging
-        gradients."""
-        norms = []
+    def _clipped_steps(self, module_ids: list[str]) -> list[tuple[str, Any, str, Any]] | None:
+        """``(module id, its config, optimizer name, optimizer)`` of every optimizer of
+        ``module_ids``, if every module clips by global norm without logging gradients (what
+        ``_clip_and_step`` does); else None."""
+        steps = []
         for module_id in module_ids:
             config = self.config.get_config_for_module(module_id)
             if config.grad_clip_by != "global_norm" or config.log_gradients:
-                return False
+                return None
             for name, optimizer in self.get_optimizers_for_module(module_id):
-                params = [p for group in optimizer.param_groups for p in group["params"] if p.grad is not None]
-                norm = torch.nn.utils.get_total_norm([p.grad for p in params], foreach=True)
-                if not torch.isfinite(norm):
-                    return False
-                norms.append((module_id, config.grad_clip, name, optimizer, params, norm))
-        for module_id, grad_clip, name, optimizer, params, norm in norms:
-            if grad_clip:
-                torch.nn.utils.clip_grads_with_norm_(params, grad_clip, norm, foreach=True)
+                steps.append((module_id, config, name, optimizer))
+        return steps
+
+    def _clip_and_step(self, steps: list[tuple[str, Any, str, Any]], log_norms: bool) -> bool:
+        """Clip the gradients of each of ``steps``' optimizers by their global norm and step
+        it, logging the norm if ``log_norms``, as RLlib's postprocessing does; nothing (False)
+        unless every norm is finite."""
+        norms = []
+        for module_id, config, name, optimizer in steps:
+            params = [p for group in optimizer.param_groups for p in group["params"] if p.grad is not None]
+            norm = torch.nn.utils.get_total_norm([p.grad for p in params], foreach=True)
+            if not torch.isfinite(norm):
+                return False
+            norms.append((params, norm))
+        for (module_id, config, name, optimizer), (params, norm) in zip(steps, norms):
+            if config.grad_clip:
+                torch.nn.utils.clip_grads_with_norm_(params, config.grad_clip, norm, foreach=True)
                 if log_norms:
                     self.metrics.log_value(key=(module_id, f"gradients_{name}_global_norm"), value=norm, window=1)
             optimizer.step()

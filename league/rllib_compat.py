@@ -64,6 +64,13 @@ def count_weights_update(learner: Any) -> None:
     learner._weights_seq_no += 1
 
 
+def gradients(learner: Any) -> dict[Any, Any]:
+    """Every registered parameter's gradient by parameter reference, what
+    ``TorchLearner.compute_gradients`` returns after its backward pass (the input of RLlib's
+    ``postprocess_gradients`` and ``apply_gradients``)."""
+    return {ref: param.grad for ref, param in learner._params.items()}
+
+
 def log_trained_minibatches(learner: Any, rows: dict[str, int], env_steps: int, count: int) -> None:
     """Count ``count`` trained minibatches of ``rows[module_id]`` rows per module (and the
     batch's ``env_steps`` each, as RLlib counts a minibatch) in the Learner's metrics and Ray
