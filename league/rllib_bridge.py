@@ -33,6 +33,7 @@ from envs.single import action_space
 from league.batched_env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, log_outcome
 from league import rllib_compat as compat
 from league.config import RunConfig
+from league.flat_adam import FlatAdam
 from league.modules import ActorCriticModule, ScriptedModule
 from league.ppo_loss import LossRows, PPOCoefficients, loss_stats, ppo_loss
 from league.players import Player
@@ -301,6 +302,24 @@ def _runner_threads(threads: int, env_runner: Any = None, **kwargs: Any) -> None
     torch.set_num_threads(threads)
 
 
+@dataclass
+class ClippedStep:
+    """One optimizer of a module in ``LeaguePPOLearner``'s update: its gradients clipped by
+    global norm (``grad_clip``: the module's config), then stepped (as one buffer by ``flat``)."""
+
+    module_id: str
+    grad_clip: float | None
+    name: str
+    optimizer: Any
+    flat: FlatAdam | None
+
+
+def release(steps: list[ClippedStep] | None) -> None:
+    for step in steps or ():
+        if step.flat:
+            step.flat.release()
+
+
 class LeaguePPOLearner(PPOTorchLearner):
     """PPO learner that gives no optimizer to parameter-free (scripted) modules, and that
     updates from a ready batch (the fast sampler's) with less machinery per minibatch.
@@ -390,6 +409,7 @@ class LeaguePPOLearner(PPOTorchLearner):
         inputs = {m: LossRows(batch.policy_batches[m], self.device) for m in modules}
         coefficients = {m: self._ppo_coefficients(m) for m in modules}
         steps = self._clipped_steps(modules)
+        trained = [p for m in modules for _, o in self.get_optimizers_for_module(m) for g in o.param_groups for p in g["params"]]
         for m in modules:
             self.module[m].train()  # as RLlib's forward_train
         # RLlib sets every optimizer's gradients to None before each backward pass: here all
@@ -397,20 +417,24 @@ class LeaguePPOLearner(PPOTorchLearner):
         for module_id in self.module.keys():
             for _, optimizer in self.get_optimizers_for_module(module_id):
                 optimizer.zero_grad(set_to_none=True)
-        trained = [p for m in modules for _, o in self.get_optimizers_for_module(m) for g in o.param_groups for p in g["params"]]
         minibatches = list(minibatch_rows({m: inputs[m].length for m in modules}, minibatch_size, num_epochs, shuffle))
         loss_per_module: dict[str, torch.Tensor] = {}
-        for n, rows in enumerate(minibatches, start=1):
-            last = n == len(minibatches)  # RLlib's statistics keep the last minibatch's only (window 1)
-            for m in modules:
-                loss_per_module[m], terms = ppo_loss(self.module[m], inputs[m].take(rows[m]), coefficients[m])
-                if last:
-                    self.metrics.log_dict(loss_stats(terms), key=m, window=1)
-            for p in trained:
-                p.grad = None
-            sum(loss_per_module.values()).backward()
-            if steps is None or not self._clip_and_step(steps, log_norms=last):
-                self.apply_gradients(self.postprocess_gradients(compat.gradients(self)))
+        try:
+            for n, rows in enumerate(minibatches, start=1):
+                last = n == len(minibatches)  # RLlib's statistics keep the last minibatch's only (window 1)
+                for m in modules:
+                    loss_per_module[m], terms = ppo_loss(self.module[m], inputs[m].take(rows[m]), coefficients[m])
+                    if last:
+                        self.metrics.log_dict(loss_stats(terms), key=m, window=1)
+                for p in trained:
+                    p.grad = None
+                sum(loss_per_module.values()).backward()
+                if steps is None or not self._clip_and_step(steps, log_norms=last):
+                    release(steps)  # RLlib's steps go parameter by parameter
+                    self.apply_gradients(self.postprocess_gradients(compat.gradients(self)))
+                    steps = self._clipped_steps(modules)
+        finally:
+            release(steps)
         compat.log_trained_minibatches(self, dict.fromkeys(modules, minibatch_size), batch.env_steps(), len(minibatches))
         for module_id, loss in loss_per_module.items():  # as RLlib: the last minibatch's
             self.metrics.log_value(key=(module_id, self.TOTAL_LOSS_KEY), value=loss, window=1)
@@ -429,36 +453,43 @@ class LeaguePPOLearner(PPOTorchLearner):
             kl_coeff=self.curr_kl_coeffs_per_module[module_id] if config.use_kl_loss else None,
         )
 
-    def _clipped_steps(self, module_ids: list[str]) -> list[tuple[str, Any, str, Any]] | None:
-        """``(module id, its config, optimizer name, optimizer)`` of every optimizer of
-        ``module_ids``, if every module clips by global norm without logging gradients (what
-        ``_clip_and_step`` does); else None."""
+    def _clipped_steps(self, module_ids: list[str]) -> list[ClippedStep] | None:
+        """Every optimizer of ``module_ids``, if every module clips by global norm without
+        logging gradients (what ``_clip_and_step`` does); else None."""
         steps = []
         for module_id in module_ids:
             config = self.config.get_config_for_module(module_id)
             if config.grad_clip_by != "global_norm" or config.log_gradients:
+                release(steps)
                 return None
             for name, optimizer in self.get_optimizers_for_module(module_id):
-                steps.append((module_id, config, name, optimizer))
+                flat = FlatAdam(optimizer) if FlatAdam.applies(optimizer) else None
+                steps.append(ClippedStep(module_id, config.grad_clip, name, optimizer, flat))
         return steps
 
-    def _clip_and_step(self, steps: list[tuple[str, Any, str, Any]], log_norms: bool) -> bool:
+    def _clip_and_step(self, steps: list[ClippedStep], log_norms: bool) -> bool:
         """Clip the gradients of each of ``steps``' optimizers by their global norm and step
         it, logging the norm if ``log_norms``, as RLlib's postprocessing does; nothing (False)
         unless every norm is finite."""
         norms = []
-        for module_id, config, name, optimizer in steps:
-            params = [p for group in optimizer.param_groups for p in group["params"] if p.grad is not None]
+        for step in steps:
+            params = [p for group in step.optimizer.param_groups for p in group["params"] if p.grad is not None]
             norm = torch.nn.utils.get_total_norm([p.grad for p in params], foreach=True)
             if not torch.isfinite(norm):
                 return False
             norms.append((params, norm))
-        for (module_id, config, name, optimizer), (params, norm) in zip(steps, norms):
-            if config.grad_clip:
-                torch.nn.utils.clip_grads_with_norm_(params, config.grad_clip, norm, foreach=True)
+        for step, (params, norm) in zip(steps, norms):
+            if step.flat:
+                step.flat.gather_gradients()
+                params = step.flat.parameters
+            if step.grad_clip:
+                torch.nn.utils.clip_grads_with_norm_(params, step.grad_clip, norm, foreach=True)
                 if log_norms:
-                    self.metrics.log_value(key=(module_id, f"gradients_{name}_global_norm"), value=norm, window=1)
-            optimizer.step()
+                    self.metrics.log_value(key=(step.module_id, f"gradients_{step.name}_global_norm"), value=norm, window=1)
+            if step.flat:
+                step.flat.step()
+            else:
+                step.optimizer.step()
         return True
 
     def take_update_seconds(self) -> float:
