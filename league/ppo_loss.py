@@ -53,19 +53,23 @@ ENTROPY_CONSTANT = 0.5 + 0.5 * math.log(2 * math.pi)  # as `Normal.entropy` writ
 
 class LossRows:
     """The loss's columns of one module's batch side by side in one float32 matrix, so that a
-    minibatch's rows are one ``index_select`` (RLlib's tensors are float32 too)."""
+    minibatch's rows are one ``index_select`` (RLlib's tensors are float32 too).
+
+    A minibatch's columns are strided views where RLlib's are tensors of their own; the loss
+    adds, multiplies and compares them, reads them through a matrix product, or (the old
+    log standard deviation's ``exp``) in rows of a few numbers as RLlib does: the same numbers.
+    """
 
     def __init__(self, columns: Mapping[str, Any], device: Any = None) -> None:
-        arrays = [np.asarray(columns[key], dtype=np.float32) for key in LOSS_COLUMNS]
-        self.length = len(arrays[0])
+        self.length = len(columns[LOSS_COLUMNS[0]])
+        arrays = [np.asarray(columns[key], dtype=np.float32).reshape(self.length, -1) for key in LOSS_COLUMNS]
         self.columns: dict[str, slice | int] = {}
         start = 0
         for key, array in zip(LOSS_COLUMNS, arrays):
-            width = array.shape[1] if key in VECTOR_COLUMNS else 1
+            width = array.shape[1]
             self.columns[key] = slice(start, start + width) if key in VECTOR_COLUMNS else start
             start += width
-        matrix = np.concatenate([a.reshape(self.length, -1) for a in arrays], axis=1)
-        self.matrix = torch.from_numpy(matrix).to(device)
+        self.matrix = torch.from_numpy(np.concatenate(arrays, axis=1)).to(device)
 
     def take(self, rows: np.ndarray) -> dict[str, torch.Tensor]:
         """The columns of ``rows``, in that order (views into one gathered matrix)."""

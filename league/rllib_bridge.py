@@ -322,27 +322,34 @@ def release(steps: list[ClippedStep] | None) -> None:
 
 class LeaguePPOLearner(PPOTorchLearner):
     """PPO learner that gives no optimizer to parameter-free (scripted) modules, and that
-    updates from a ready batch (the fast sampler's) with less machinery per minibatch.
+    updates from a ready batch (the fast sampler's) in plain torch.
 
-    ``update`` of a ``MultiAgentBatch`` takes the gradient steps of RLlib's
-    ``Learner.update`` (Ray 2.60): the same minibatches in the same order
-    (``train_batch.minibatch_rows``, drawing RLlib's shuffles from NumPy's global generator),
-    RLlib's forward pass, PPO loss and metrics (``compute_losses``) and backward pass
-    (``compute_gradients``), the same clipping by global norm and Adam step, the same steps
-    counted, then RLlib's ``after_gradient_based_update`` (lr, entropy and KL coefficients).
-    ``tests/test_fast_path.py`` checks weights and results equal to RLlib's update. Cheaper:
+    ``update`` of a ``MultiAgentBatch`` (one local Learner; every module to train an
+    ``ActorCriticModule`` with a critic, its batch without a loss mask) takes the gradient
+    steps of RLlib's ``Learner.update`` (Ray 2.60) and reports its results: the same
+    minibatches in the same order (``train_batch.minibatch_rows``, drawing RLlib's shuffles
+    from NumPy's global generator), RLlib's PPO loss operation for operation
+    (``league.ppo_loss``), the same backward pass, clipping by global norm and Adam step,
+    the same steps counted, then RLlib's ``after_gradient_based_update`` (lr, entropy and KL
+    coefficients). ``tests/test_fast_path.py`` checks the weights equal to the bit and the
+    results equal to RLlib's update. Cheaper:
 
-    * the minibatches are rows gathered from the batch's tensors, not the whole batch
-      shuffled column by column (in place: RLlib's update reorders the caller's batch) and
-      sliced and concatenated into ``SampleBatch`` copies;
+    * a minibatch is one ``index_select`` of the loss's columns side by side
+      (``ppo_loss.LossRows``), not the whole batch shuffled column by column (in place:
+      RLlib's update reorders the caller's batch) and sliced into ``SampleBatch`` copies;
+    * the loss without RLlib's distribution objects, forward wrappers and per-minibatch
+      metrics: RLlib logs the loss statistics with window 1, so only the last minibatch's
+      are reported (and read by the KL coefficient's update): they are computed for the last
+      minibatch only, and the steps trained are counted once per update;
     * finite gradients (their global norm is) are clipped in one foreach multiply with
-      RLlib's coefficient, ``max / max(norm + 1e-6, max)``, and stepped by Adam in foreach
-      passes; RLlib's ``postprocess_gradients`` and ``apply_gradients`` go tensor by tensor,
-      with two finiteness checks each. Non-finite gradients take RLlib's own two steps.
+      RLlib's coefficient, ``max / max(norm + 1e-6, max)``, and stepped by Adam as one buffer
+      per module (``flat_adam.FlatAdam``, the same arithmetic); RLlib's
+      ``postprocess_gradients`` and ``apply_gradients`` go tensor by tensor, with two
+      finiteness checks each. Non-finite gradients take RLlib's own two steps.
 
     One result differs: RLlib logs a gradient norm of 0.0 for every module with an
     optimizer that was not in the update; this logs norms of trained modules only. Episodes
-    (the standard sampler) and several Learners take RLlib's ``update`` unchanged.
+    (the standard sampler), several Learners and other modules take RLlib's ``update``.
     (``build_config`` sets no ``torch.compile``, grad scaler or torch lr scheduler, which
     this update does not know.)
 
@@ -408,7 +415,6 @@ class LeaguePPOLearner(PPOTorchLearner):
         modules = [m for m in batch.policy_batches if self.should_module_be_updated(m, batch)]
         inputs = {m: LossRows(batch.policy_batches[m], self.device) for m in modules}
         coefficients = {m: self._ppo_coefficients(m) for m in modules}
-        steps = self._clipped_steps(modules)
         trained = [p for m in modules for _, o in self.get_optimizers_for_module(m) for g in o.param_groups for p in g["params"]]
         for m in modules:
             self.module[m].train()  # as RLlib's forward_train
@@ -419,6 +425,7 @@ class LeaguePPOLearner(PPOTorchLearner):
                 optimizer.zero_grad(set_to_none=True)
         minibatches = list(minibatch_rows({m: inputs[m].length for m in modules}, minibatch_size, num_epochs, shuffle))
         loss_per_module: dict[str, torch.Tensor] = {}
+        steps = self._clipped_steps(modules)
         try:
             for n, rows in enumerate(minibatches, start=1):
                 last = n == len(minibatches)  # RLlib's statistics keep the last minibatch's only (window 1)
@@ -454,8 +461,9 @@ class LeaguePPOLearner(PPOTorchLearner):
         )
 
     def _clipped_steps(self, module_ids: list[str]) -> list[ClippedStep] | None:
-        """Every optimizer of ``module_ids``, if every module clips by global norm without
-        logging gradients (what ``_clip_and_step`` does); else None."""
+        """Every optimizer of ``module_ids``, its tensors made one buffer where ``FlatAdam``
+        applies (``release`` undoes it), if every module clips by global norm without logging
+        gradients (what ``_clip_and_step`` does); else None."""
         steps = []
         for module_id in module_ids:
             config = self.config.get_config_for_module(module_id)
@@ -470,10 +478,12 @@ class LeaguePPOLearner(PPOTorchLearner):
     def _clip_and_step(self, steps: list[ClippedStep], log_norms: bool) -> bool:
         """Clip the gradients of each of ``steps``' optimizers by their global norm and step
         it, logging the norm if ``log_norms``, as RLlib's postprocessing does; nothing (False)
-        unless every norm is finite."""
+        unless every parameter has a gradient and every norm is finite."""
         norms = []
         for step in steps:
-            params = [p for group in step.optimizer.param_groups for p in group["params"] if p.grad is not None]
+            params = [p for group in step.optimizer.param_groups for p in group["params"]]
+            if any(p.grad is None for p in params):  # (Adam would pass over them)
+                return False
             norm = torch.nn.utils.get_total_norm([p.grad for p in params], foreach=True)
             if not torch.isfinite(norm):
                 return False
