@@ -89,10 +89,14 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         """The Gaussian's mean: what the policy does when not exploring."""
         return self.pi(self.actor_features(obs))
 
-    def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
-        mean = self.deterministic_action(batch[Columns.OBS])
+    def action_dist_inputs(self, obs: torch.Tensor) -> torch.Tensor:
+        """The Gaussian's mean and log standard deviation, side by side (RLlib's ``TorchDiagGaussian`` inputs)."""
+        mean = self.deterministic_action(obs)
         log_std = self.log_std.expand_as(mean)
-        return {Columns.ACTION_DIST_INPUTS: torch.cat((mean, log_std), dim=-1)}
+        return torch.cat((mean, log_std), dim=-1)
+
+    def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
+        return {Columns.ACTION_DIST_INPUTS: self.action_dist_inputs(batch[Columns.OBS])}
 
     def compute_values(self, batch: dict[str, Any], embeddings: Any = None) -> torch.Tensor:
         return self.vf(self.critic_features(batch[Columns.OBS])).squeeze(-1)

@@ -33,7 +33,9 @@ from envs.single import action_space
 from league.batched_env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, log_outcome
 from league import rllib_compat as compat
 from league.config import RunConfig
+from league.flat_adam import FlatAdam
 from league.modules import ActorCriticModule, ScriptedModule
+from league.ppo_loss import LossRows, PPOCoefficients, loss_stats, ppo_loss
 from league.players import Player
 from league.train_batch import minibatch_rows, standardized
 from ray.rllib.algorithms.algorithm import Algorithm
@@ -41,6 +43,7 @@ from ray.rllib.algorithms.ppo import PPO, PPOConfig
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.connectors.connector_v2 import ConnectorV2
+from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
@@ -60,7 +63,6 @@ from ray.rllib.utils.metrics import (
     SYNCH_WORKER_WEIGHTS_TIMER,
     TIMERS,
 )
-from ray.rllib.utils.torch_utils import convert_to_torch_tensor
 
 
 
@@ -302,29 +304,54 @@ def _runner_threads(threads: int, env_runner: Any = None, **kwargs: Any) -> None
     torch.set_num_threads(threads)
 
 
+@dataclass
+class ClippedStep:
+    """One optimizer of a module in ``LeaguePPOLearner``'s update: its gradients clipped by
+    global norm (``grad_clip``: the module's config), then stepped (as one buffer by ``flat``)."""
+
+    module_id: str
+    grad_clip: float | None
+    name: str
+    optimizer: Any
+    flat: FlatAdam | None
+
+
+def release(steps: list[ClippedStep] | None) -> None:
+    for step in steps or ():
+        if step.flat:
+            step.flat.release()
+
+
 class LeaguePPOLearner(PPOTorchLearner):
     """PPO learner that gives no optimizer to parameter-free (scripted) modules, and that
-    updates from a ready batch (the fast sampler's) with less machinery per minibatch.
+    updates from a ready batch (the fast sampler's) in plain torch.
 
-    ``update`` of a ``MultiAgentBatch`` takes the gradient steps of RLlib's
-    ``Learner.update`` (Ray 2.60): the same minibatches in the same order
-    (``train_batch.minibatch_rows``, drawing RLlib's shuffles from NumPy's global generator),
-    RLlib's forward pass, PPO loss and metrics (``compute_losses``) and backward pass
-    (``compute_gradients``), the same clipping by global norm and Adam step, the same steps
-    counted, then RLlib's ``after_gradient_based_update`` (lr, entropy and KL coefficients).
-    ``tests/test_fast_path.py`` checks weights and results equal to RLlib's update. Cheaper:
+    ``update`` of a ``MultiAgentBatch`` (one local Learner; every module to train an
+    ``ActorCriticModule`` with a critic, its batch without a loss mask) takes the gradient
+    steps of RLlib's ``Learner.update`` (Ray 2.60) and reports its results: the same
+    minibatches in the same order (``train_batch.minibatch_rows``, drawing RLlib's shuffles
+    from NumPy's global generator), RLlib's PPO loss operation for operation
+    (``league.ppo_loss``), the same backward pass, clipping by global norm and Adam step,
+    the same steps counted, then RLlib's ``after_gradient_based_update`` (lr, entropy and KL
+    coefficients). ``tests/test_fast_path.py`` checks the weights equal to the bit and the
+    results equal to RLlib's update. Cheaper:
 
-    * the minibatches are rows gathered from the batch's tensors, not the whole batch
-      shuffled column by column (in place: RLlib's update reorders the caller's batch) and
-      sliced and concatenated into ``SampleBatch`` copies;
+    * a minibatch is one ``index_select`` of the loss's columns side by side
+      (``ppo_loss.LossRows``), not the whole batch shuffled column by column (in place:
+      RLlib's update reorders the caller's batch) and sliced into ``SampleBatch`` copies;
+    * the loss without RLlib's distribution objects, forward wrappers and per-minibatch
+      metrics: RLlib logs the loss statistics with window 1, so only the last minibatch's
+      are reported (and read by the KL coefficient's update): they are computed for the last
+      minibatch only, and the steps trained are counted once per update;
     * finite gradients (their global norm is) are clipped in one foreach multiply with
-      RLlib's coefficient, ``max / max(norm + 1e-6, max)``, and stepped by Adam in foreach
-      passes; RLlib's ``postprocess_gradients`` and ``apply_gradients`` go tensor by tensor,
-      with two finiteness checks each. Non-finite gradients take RLlib's own two steps.
+      RLlib's coefficient, ``max / max(norm + 1e-6, max)``, and stepped by Adam as one buffer
+      per module (``flat_adam.FlatAdam``, the same arithmetic); RLlib's
+      ``postprocess_gradients`` and ``apply_gradients`` go tensor by tensor, with two
+      finiteness checks each. Non-finite gradients take RLlib's own two steps.
 
     One result differs: RLlib logs a gradient norm of 0.0 for every module with an
     optimizer that was not in the update; this logs norms of trained modules only. Episodes
-    (the standard sampler) and several Learners take RLlib's ``update`` unchanged.
+    (the standard sampler), several Learners and other modules take RLlib's ``update``.
     (``build_config`` sets no ``torch.compile``, grad scaler or torch lr scheduler, which
     this update does not know.)
 
@@ -365,8 +392,7 @@ class LeaguePPOLearner(PPOTorchLearner):
         started = time.perf_counter()
         try:
             ready = batch if training_data is None else training_data.batch  # the LearnerGroup sends `training_data`
-            one_local_learner = self.config.num_learners <= 1
-            if isinstance(ready, MultiAgentBatch) and minibatch_size and not kwargs and one_local_learner:
+            if isinstance(ready, MultiAgentBatch) and minibatch_size and not kwargs and self._has_own_loss(ready):
                 return self._update_in_minibatches(
                     ready, timesteps or {}, num_epochs, minibatch_size, shuffle_batch_per_epoch and num_epochs > 1
                 )
@@ -377,65 +403,117 @@ class LeaguePPOLearner(PPOTorchLearner):
         finally:
             self.update_seconds += time.perf_counter() - started
 
+    def _has_own_loss(self, batch: MultiAgentBatch) -> bool:
+        """Whether the learner's own update applies: one local Learner, and every module to
+        update an ``ActorCriticModule`` with a critic, its batch without a loss mask."""
+        if self.config.num_learners > 1:
+            return False
+        for module_id, module_batch in batch.policy_batches.items():
+            if self.should_module_be_updated(module_id, batch):
+                config = self.config.get_config_for_module(module_id)
+                own = isinstance(self.module[module_id], ActorCriticModule) and config.use_critic
+                if not own or Columns.LOSS_MASK in module_batch:
+                    return False
+        return True
+
     def _update_in_minibatches(
         self, batch: MultiAgentBatch, timesteps: dict[str, Any], num_epochs: int, minibatch_size: int, shuffle: bool
     ) -> dict[str, Any]:
         self.before_gradient_based_update(timesteps=timesteps)
         compat.count_weights_update(self)
-        columns = {
-            module_id: convert_to_torch_tensor(dict(module_batch), device=self.device)
-            for module_id, module_batch in batch.policy_batches.items()
-            if self.should_module_be_updated(module_id, batch)
-        }
-        lengths = {module_id: len(next(iter(c.values()))) for module_id, c in columns.items()}
+        modules = [m for m in batch.policy_batches if self.should_module_be_updated(m, batch)]
+        inputs = {m: LossRows(batch.policy_batches[m], self.device) for m in modules}
+        coefficients = {m: self._ppo_coefficients(m) for m in modules}
+        trained = [p for m in modules for _, o in self.get_optimizers_for_module(m) for g in o.param_groups for p in g["params"]]
+        for m in modules:
+            self.module[m].train()  # as RLlib's forward_train
+        # RLlib sets every optimizer's gradients to None before each backward pass: here all
+        # once (modules outside the loss keep None), then the trained modules' each time.
+        for module_id in self.module.keys():
+            for _, optimizer in self.get_optimizers_for_module(module_id):
+                optimizer.zero_grad(set_to_none=True)
+        minibatches = list(minibatch_rows({m: inputs[m].length for m in modules}, minibatch_size, num_epochs, shuffle))
         loss_per_module: dict[str, torch.Tensor] = {}
-        for rows in minibatch_rows(lengths, minibatch_size, num_epochs, shuffle):
-            minibatch = MultiAgentBatch(
-                {module_id: rows_of(columns[module_id], rows[module_id]) for module_id in columns},
-                env_steps=batch.env_steps(),  # as RLlib's minibatches: the whole batch's
-            )
-            fwd_out = self.module.forward_train(minibatch.policy_batches)
-            loss_per_module = self.compute_losses(fwd_out=fwd_out, batch=minibatch.policy_batches)
-            gradients = self.compute_gradients(loss_per_module)
-            if not self._clip_and_step(list(columns)):
-                self.apply_gradients(self.postprocess_gradients(gradients))
-            compat.log_trained_minibatch(self, minibatch)
+        steps = self._clipped_steps(modules)
+        try:
+            for n, rows in enumerate(minibatches, start=1):
+                last = n == len(minibatches)  # RLlib's statistics keep the last minibatch's only (window 1)
+                for m in modules:
+                    loss_per_module[m], terms = ppo_loss(self.module[m], inputs[m].take(rows[m]), coefficients[m])
+                    if last:
+                        self.metrics.log_dict(loss_stats(terms), key=m, window=1)
+                for p in trained:
+                    p.grad = None
+                sum(loss_per_module.values()).backward()
+                if steps is None or not self._clip_and_step(steps, log_norms=last):
+                    release(steps)  # RLlib's steps go parameter by parameter
+                    self.apply_gradients(self.postprocess_gradients(compat.gradients(self)))
+                    steps = self._clipped_steps(modules)
+        finally:
+            release(steps)
+        compat.log_trained_minibatches(self, dict.fromkeys(modules, minibatch_size), batch.env_steps(), len(minibatches))
         for module_id, loss in loss_per_module.items():  # as RLlib: the last minibatch's
             self.metrics.log_value(key=(module_id, self.TOTAL_LOSS_KEY), value=loss, window=1)
         self.after_gradient_based_update(timesteps=timesteps)
         return self.metrics.reduce()
 
-    def _clip_and_step(self, module_ids: list[str]) -> bool:
-        """Clip the gradients of each optimizer of ``module_ids`` by their global norm and step
-        it, logging the norm, as RLlib's postprocessing does; nothing (False) unless every norm
-        is finite and every module clips by global norm without logging gradients."""
-        norms = []
+    def _ppo_coefficients(self, module_id: str) -> PPOCoefficients:
+        """The module's loss settings for this update: the entropy coefficient is stepped by
+        its scheduler and the KL coefficient adapted after an update, not during one."""
+        config = self.config.get_config_for_module(module_id)
+        return PPOCoefficients(
+            clip_param=config.clip_param,
+            vf_clip_param=config.vf_clip_param,
+            vf_loss_coeff=config.vf_loss_coeff,
+            entropy_coeff=self.entropy_coeff_schedulers_per_module[module_id].get_current_value(),
+            kl_coeff=self.curr_kl_coeffs_per_module[module_id] if config.use_kl_loss else None,
+        )
+
+    def _clipped_steps(self, module_ids: list[str]) -> list[ClippedStep] | None:
+        """Every optimizer of ``module_ids``, its tensors made one buffer where ``FlatAdam``
+        applies (``release`` undoes it), if every module clips by global norm without logging
+        gradients (what ``_clip_and_step`` does); else None."""
+        steps = []
         for module_id in module_ids:
             config = self.config.get_config_for_module(module_id)
             if config.grad_clip_by != "global_norm" or config.log_gradients:
-                return False
+                release(steps)
+                return None
             for name, optimizer in self.get_optimizers_for_module(module_id):
-                params = [p for group in optimizer.param_groups for p in group["params"] if p.grad is not None]
-                norm = torch.nn.utils.get_total_norm([p.grad for p in params], foreach=True)
-                if not torch.isfinite(norm):
-                    return False
-                norms.append((module_id, config.grad_clip, name, optimizer, params, norm))
-        for module_id, grad_clip, name, optimizer, params, norm in norms:
-            if grad_clip:
-                torch.nn.utils.clip_grads_with_norm_(params, grad_clip, norm, foreach=True)
-                self.metrics.log_value(key=(module_id, f"gradients_{name}_global_norm"), value=norm, window=1)
-            optimizer.step()
+                flat = FlatAdam(optimizer) if FlatAdam.applies(optimizer) else None
+                steps.append(ClippedStep(module_id, config.grad_clip, name, optimizer, flat))
+        return steps
+
+    def _clip_and_step(self, steps: list[ClippedStep], log_norms: bool) -> bool:
+        """Clip the gradients of each of ``steps``' optimizers by their global norm and step
+        it, logging the norm if ``log_norms``, as RLlib's postprocessing does; nothing (False)
+        unless every parameter has a gradient and every norm is finite."""
+        norms = []
+        for step in steps:
+            params = [p for group in step.optimizer.param_groups for p in group["params"]]
+            if any(p.grad is None for p in params):  # (Adam would pass over them)
+                return False
+            norm = torch.nn.utils.get_total_norm([p.grad for p in params], foreach=True)
+            if not torch.isfinite(norm):
+                return False
+            norms.append((params, norm))
+        for step, (params, norm) in zip(steps, norms):
+            if step.flat:
+                step.flat.gather_gradients()
+                params = step.flat.parameters
+            if step.grad_clip:
+                torch.nn.utils.clip_grads_with_norm_(params, step.grad_clip, norm, foreach=True)
+                if log_norms:
+                    self.metrics.log_value(key=(step.module_id, f"gradients_{step.name}_global_norm"), value=norm, window=1)
+            if step.flat:
+                step.flat.step()
+            else:
+                step.optimizer.step()
         return True
 
     def take_update_seconds(self) -> float:
         seconds, self.update_seconds = self.update_seconds, 0.0
         return seconds
-
-
-def rows_of(columns: dict[str, torch.Tensor], rows: np.ndarray) -> SampleBatch:
-    """The ``rows`` of every column, in that order."""
-    index = torch.from_numpy(rows)
-    return SampleBatch({key: column.index_select(0, index.to(column.device)) for key, column in columns.items()})
 
 
 def take_learning_seconds(algo: Algorithm) -> float:

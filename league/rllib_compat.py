@@ -14,7 +14,15 @@ import numpy as np
 from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 from ray.rllib.env.single_agent_episode import SingleAgentEpisode
 from ray.rllib.env.utils.infinite_lookback_buffer import InfiniteLookbackBuffer
-from ray.rllib.policy.sample_batch import MultiAgentBatch
+from ray.rllib.utils.metrics import (
+    ALL_MODULES,
+    MODULE_TRAIN_BATCH_SIZE_MEAN,
+    NUM_ENV_STEPS_TRAINED,
+    NUM_ENV_STEPS_TRAINED_LIFETIME,
+    NUM_MODULE_STEPS_TRAINED,
+    NUM_MODULE_STEPS_TRAINED_LIFETIME,
+    WEIGHTS_SEQ_NO,
+)
 
 RAY_VERSION = "2.60.0"
 
@@ -56,12 +64,37 @@ def count_weights_update(learner: Any) -> None:
     learner._weights_seq_no += 1
 
 
-def log_trained_minibatch(learner: Any, minibatch: MultiAgentBatch) -> None:
-    """Count one trained minibatch in the Learner's metrics and Ray metrics, as
-    ``Learner.update`` does after each (module and env steps trained, batch size, weights
-    sequence number)."""
-    learner._log_metrics(batch=minibatch)
-    learner._log_steps_trained_metrics(minibatch)
+def gradients(learner: Any) -> dict[Any, Any]:
+    """Every registered parameter's gradient by parameter reference, what
+    ``TorchLearner.compute_gradients`` returns after its backward pass (the input of RLlib's
+    ``postprocess_gradients`` and ``apply_gradients``)."""
+    return {ref: param.grad for ref, param in learner._params.items()}
+
+
+def log_trained_minibatches(learner: Any, rows: dict[str, int], env_steps: int, count: int) -> None:
+    """Count ``count`` trained minibatches of ``rows[module_id]`` rows per module (and the
+    batch's ``env_steps`` each, as RLlib counts a minibatch) in the Learner's metrics and Ray
+    metrics, with the results of ``Learner.update`` calling ``_log_metrics`` and
+    ``_log_steps_trained_metrics`` after each: sums pushed as one total, the mean batch size
+    and the weights sequence number (the same for every minibatch) once."""
+    if env_steps > 0:
+        learner._metrics_all_modules_num_env_steps_trained.inc(value=env_steps * count)
+        learner._metrics_all_modules_num_module_steps_trained.inc(value=sum(rows.values()) * count)
+    for module_id, size in rows.items():
+        learner.metrics.log_value((module_id, WEIGHTS_SEQ_NO), learner._weights_seq_no, window=1)
+        learner.metrics.log_value((module_id, MODULE_TRAIN_BATCH_SIZE_MEAN), size, reduce="mean")
+        learner.metrics.log_value((module_id, NUM_MODULE_STEPS_TRAINED), size * count, reduce="sum")
+        learner.metrics.log_value(
+            (module_id, NUM_MODULE_STEPS_TRAINED_LIFETIME), size * count, reduce="lifetime_sum", with_throughput=True
+        )
+        learner.metrics.log_value((ALL_MODULES, NUM_MODULE_STEPS_TRAINED), size * count, reduce="sum", with_throughput=True)
+        learner.metrics.log_value(
+            (ALL_MODULES, NUM_MODULE_STEPS_TRAINED_LIFETIME), size * count, reduce="lifetime_sum", with_throughput=True
+        )
+    learner.metrics.log_value((ALL_MODULES, NUM_ENV_STEPS_TRAINED), env_steps * count, reduce="sum", with_throughput=True)
+    learner.metrics.log_value(
+        (ALL_MODULES, NUM_ENV_STEPS_TRAINED_LIFETIME), env_steps * count, reduce="lifetime_sum", with_throughput=True
+    )
 
 
 # ---------------------------------------------------------------- episodes

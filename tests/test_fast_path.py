@@ -404,3 +404,27 @@ def test_non_finite_gradients_are_handled_as_rllib_does(algo):
     for module_id in (ATTACKER.name, TEAM.name):
         for name, weight in rllib[module_id].items():
             np.testing.assert_array_equal(ours[module_id][name], weight, err_msg=f"{module_id} {name}")
+
+
+def test_our_update_without_the_kl_term_trains_as_rllibs_update(algo):
+    # Every shipped config keeps RLlib's default, PPO's KL term; without it (`use_kl_loss`
+    # off) the loss has no KL term, the reported KL is 0 and the KL coefficient stays.
+    def use_kl_loss(on):
+        def set_it(learner):
+            learner.config.use_kl_loss = on
+
+        [call.get() for call in algo.learner_group.foreach_learner(set_it)]
+
+    use_kl_loss(False)
+    try:
+        (ours, ours_reported), (rllib, rllib_reported) = compare_updates(algo)
+    finally:
+        use_kl_loss(True)
+    for module_id in (ATTACKER.name, TEAM.name):  # the same operations: equal to the bit
+        for name, weight in rllib[module_id].items():
+            np.testing.assert_array_equal(ours[module_id][name], weight, err_msg=f"{module_id} {name}")
+    assert ours_reported.keys() == rllib_reported.keys()
+    for module_id in (ATTACKER.name, TEAM.name, ALL_MODULES):
+        theirs = {k: v for k, v in rllib_reported[module_id].items() if "throughput" not in k}
+        np.testing.assert_equal({k: ours_reported[module_id].get(k) for k in theirs}, theirs, err_msg=module_id)
+    assert ours_reported[TEAM.name]["mean_kl_loss"] == 0.0

@@ -1,0 +1,146 @@
+"""RLlib's PPO loss for ``league.modules.ActorCriticModule``, in plain torch.
+
+The formula and the order of operations of Ray 2.60's ``PPOTorchLearner.compute_loss_for_module``
+(no loss mask, with a critic), the diagonal Gaussian's log-probability, entropy and KL as
+RLlib's ``TorchDiagGaussian`` gets them from ``torch.distributions.Normal``, written out:
+
+    ratio   = exp(logp(actions) - logp_old)
+    loss    = mean(-min(A ratio, A clip(ratio, 1 - clip_param, 1 + clip_param))
+                   + vf_loss_coeff clamp((V - V_target)^2, 0, vf_clip_param)
+                   - entropy_coeff entropy)
+              + kl_coeff mean(KL(old || new))        (if ``use_kl_loss``)
+
+The same operations in the same order give the same gradients to the bit: autograd adds
+the gradients that reach one tensor in the order the graph was built, so the terms are
+built in RLlib's order (``tests/test_fast_path.py`` checks the weights after an update
+equal to RLlib's). What is left out: RLlib's distribution objects and forward wrappers,
+and the statistics, which ``loss_stats`` computes only for the minibatch whose statistics
+are reported.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+import torch
+
+from ray.rllib.algorithms.ppo.ppo import (
+    LEARNER_RESULTS_KL_KEY,
+    LEARNER_RESULTS_VF_EXPLAINED_VAR_KEY,
+    LEARNER_RESULTS_VF_LOSS_UNCLIPPED_KEY,
+)
+from ray.rllib.core.columns import Columns
+from ray.rllib.core.learner.learner import ENTROPY_KEY, POLICY_LOSS_KEY, VF_LOSS_KEY
+from ray.rllib.evaluation.postprocessing import Postprocessing
+from ray.rllib.utils.torch_utils import explained_variance
+
+# The batch columns the loss reads.
+LOSS_COLUMNS = (
+    Columns.OBS,
+    Columns.ACTIONS,
+    Columns.ACTION_LOGP,
+    Columns.ACTION_DIST_INPUTS,
+    Postprocessing.ADVANTAGES,
+    Postprocessing.VALUE_TARGETS,
+)
+VECTOR_COLUMNS = {Columns.OBS, Columns.ACTIONS, Columns.ACTION_DIST_INPUTS}  # one row per step, several numbers
+LOG_SQRT_2PI = math.log(math.sqrt(2 * math.pi))  # as `Normal.log_prob` writes it
+ENTROPY_CONSTANT = 0.5 + 0.5 * math.log(2 * math.pi)  # as `Normal.entropy` writes it (Python floats)
+
+
+class LossRows:
+    """The loss's columns of one module's batch side by side in one float32 matrix, so that a
+    minibatch's rows are one ``index_select`` (RLlib's tensors are float32 too).
+
+    A minibatch's columns are strided views where RLlib's are tensors of their own; the loss
+    adds, multiplies and compares them, reads them through a matrix product, or (the old
+    log standard deviation's ``exp``) in rows of a few numbers as RLlib does: the same numbers.
+    """
+
+    def __init__(self, columns: Mapping[str, Any], device: Any = None) -> None:
+        self.length = len(columns[LOSS_COLUMNS[0]])
+        arrays = [np.asarray(columns[key], dtype=np.float32).reshape(self.length, -1) for key in LOSS_COLUMNS]
+        self.columns: dict[str, slice | int] = {}
+        start = 0
+        for key, array in zip(LOSS_COLUMNS, arrays):
+            width = array.shape[1]
+            self.columns[key] = slice(start, start + width) if key in VECTOR_COLUMNS else start
+            start += width
+        self.matrix = torch.from_numpy(np.concatenate(arrays, axis=1)).to(device)
+
+    def take(self, rows: np.ndarray) -> dict[str, torch.Tensor]:
+        """The columns of ``rows``, in that order (views into one gathered matrix)."""
+        picked = self.matrix.index_select(0, torch.from_numpy(rows).to(self.matrix.device))
+        return {key: picked[:, where] for key, where in self.columns.items()}
+
+
+@dataclass(frozen=True)
+class PPOCoefficients:
+    """One module's loss settings for one update (``entropy_coeff`` and ``kl_coeff`` are
+    RLlib's current values, the tensors its loss multiplies by; ``kl_coeff`` None: no KL term)."""
+
+    clip_param: float
+    vf_clip_param: float
+    vf_loss_coeff: float
+    entropy_coeff: Any
+    kl_coeff: Any
+
+
+@dataclass
+class LossTerms:
+    """The per-row terms of one minibatch's loss, for its statistics."""
+
+    surrogate: torch.Tensor
+    vf_loss: torch.Tensor
+    vf_loss_clipped: torch.Tensor
+    entropy: torch.Tensor
+    mean_kl: torch.Tensor | None
+    values: torch.Tensor
+    value_targets: torch.Tensor
+
+
+def ppo_loss(module: Any, batch: Mapping[str, torch.Tensor], c: PPOCoefficients) -> tuple[torch.Tensor, LossTerms]:
+    """The total loss of ``module`` on the minibatch ``batch`` and its terms."""
+    # RLlib: forward_train, then TorchDiagGaussian.from_logits: chunk, exp.
+    loc, log_std = module.action_dist_inputs(batch[Columns.OBS]).chunk(2, dim=-1)
+    scale = log_std.exp()
+    # Normal.log_prob(actions), summed over the action's dimensions.
+    var = scale**2
+    log_scale = scale.log()
+    logp = (-((batch[Columns.ACTIONS] - loc) ** 2) / (2 * var) - log_scale - LOG_SQRT_2PI).sum(-1)
+    logp_ratio = torch.exp(logp - batch[Columns.ACTION_LOGP])
+    mean_kl = None
+    if c.kl_coeff is not None:  # torch's KL(Normal p || Normal q) with p the sampling policy's
+        old_loc, old_log_std = batch[Columns.ACTION_DIST_INPUTS].chunk(2, dim=-1)
+        old_scale = old_log_std.exp()
+        var_ratio = (old_scale / scale).pow(2)
+        t1 = ((old_loc - loc) / scale).pow(2)
+        mean_kl = torch.mean((0.5 * (var_ratio + t1 - 1 - var_ratio.log())).sum(-1))
+    entropy = (ENTROPY_CONSTANT + torch.log(scale)).sum(-1)
+    advantages = batch[Postprocessing.ADVANTAGES]
+    surrogate = torch.min(
+        advantages * logp_ratio, advantages * torch.clamp(logp_ratio, 1 - c.clip_param, 1 + c.clip_param)
+    )
+    values = module.compute_values({Columns.OBS: batch[Columns.OBS]})
+    value_targets = batch[Postprocessing.VALUE_TARGETS]
+    vf_loss = torch.pow(values - value_targets, 2.0)
+    vf_loss_clipped = torch.clamp(vf_loss, 0, c.vf_clip_param)
+    total = torch.mean(-surrogate + c.vf_loss_coeff * vf_loss_clipped - (c.entropy_coeff * entropy))
+    if mean_kl is not None:
+        total += c.kl_coeff * mean_kl
+    return total, LossTerms(surrogate, vf_loss, vf_loss_clipped, entropy, mean_kl, values, value_targets)
+
+
+def loss_stats(terms: LossTerms) -> dict[str, torch.Tensor]:
+    """The statistics RLlib logs of a minibatch's loss, under its keys."""
+    return {
+        POLICY_LOSS_KEY: -torch.mean(terms.surrogate),
+        VF_LOSS_KEY: torch.mean(terms.vf_loss_clipped),
+        LEARNER_RESULTS_VF_LOSS_UNCLIPPED_KEY: torch.mean(terms.vf_loss),
+        LEARNER_RESULTS_VF_EXPLAINED_VAR_KEY: explained_variance(terms.value_targets.contiguous(), terms.values),
+        ENTROPY_KEY: torch.mean(terms.entropy),
+        LEARNER_RESULTS_KL_KEY: terms.mean_kl if terms.mean_kl is not None else torch.tensor(0.0),
+    }
