@@ -370,13 +370,8 @@ class LeaguePPOLearner(PPOTorchLearner):
             self.register_optimizer(
                 module_id=module_id, optimizer=optimizer, params=params, lr_or_lr_schedule=config.lr
             )
-
-    @staticmethod
-    def _set_optimizer_lr(optimizer: torch.optim.Optimizer, lr: Any) -> None:
-        # An lr schedule (`ppo.lr_schedule`) hands its first value as a tensor, which a
-        # foreach Adam refuses; later values come as floats.
-        for group in optimizer.param_groups:
-            group["lr"] = float(lr)
+            for group in optimizer.param_groups:  # a schedule's first rate is a tensor, which foreach Adam refuses
+                group["lr"] = float(group["lr"])
 
     def update(
         self,
