@@ -217,19 +217,27 @@ def test_the_learning_rate_follows_its_schedule_over_env_steps(algo):  # `algo`:
         own.stop()
 
 
-def test_the_targeters_shaping_reaches_its_rows_and_no_others(algo):
-    # `ppo.targeter_shaping`: only T's rewards are shaped (D's and the attacker's stay as they were).
+def training_data_with_team_setting(algo, key, value):
+    """One play of the attacker and the team learning; its training data as the team's
+    module is configured, and with ``model_config[key] = value``."""
     set_trainable(algo, [ATTACKER.name, TEAM.name])
     runner = algo.env_runner
     runner._reset_all()
-    done, rows, t = runner._play(40, None, True, False)
-    team = runner.module[TEAM.name]
+    _, rows, t = runner._play(40, None, True, False)
+    team_config = runner.module[TEAM.name].model_config
+    before = team_config[key]
     plain = runner._training_data(rows, t)
-    team.model_config["targeter_shaping"] = 3.0
+    team_config[key] = value
     try:
-        shaped = runner._training_data(rows, t)
+        changed = runner._training_data(rows, t)
     finally:
-        team.model_config["targeter_shaping"] = 0.0
+        team_config[key] = before
+    return runner, rows, t, plain, changed
+
+
+def test_the_targeters_shaping_reaches_its_rows_and_no_others(algo):
+    # `ppo.targeter_shaping`: only T's rewards are shaped (D's and the attacker's stay as they were).
+    runner, rows, t, plain, shaped = training_data_with_team_setting(algo, "targeter_shaping", 3.0)
     np.testing.assert_array_equal(shaped[ATTACKER.name][Postprocessing.ADVANTAGES], plain[ATTACKER.name][Postprocessing.ADVANTAGES])
     # The team's columns hold T's rows, then D's. GAE is linear in the rewards, so the
     # shaping adds GAE of the shaping rewards alone (values 0) to T's advantages.
@@ -251,17 +259,7 @@ def test_the_targeters_shaping_reaches_its_rows_and_no_others(algo):
 
 def test_a_shared_team_reward_pays_t_and_d_the_sum_of_both(algo):
     # `ppo.team_reward: shared`: T's rows learn from r_T + r_D, D's rows too; the attacker's stay.
-    set_trainable(algo, [ATTACKER.name, TEAM.name])
-    runner = algo.env_runner
-    runner._reset_all()
-    done, rows, t = runner._play(40, None, True, False)
-    team = runner.module[TEAM.name]
-    own = runner._training_data(rows, t)
-    team.model_config["team_reward"] = "shared"
-    try:
-        shared = runner._training_data(rows, t)
-    finally:
-        team.model_config["team_reward"] = "own"
+    runner, rows, t, own, shared = training_data_with_team_setting(algo, "team_reward", "shared")
     np.testing.assert_array_equal(shared[ATTACKER.name][Postprocessing.ADVANTAGES], own[ATTACKER.name][Postprocessing.ADVANTAGES])
     # GAE is linear in the rewards: T's advantages gain the GAE of D's rewards alone (values
     # 0), D's gain that of T's. The team's columns hold T's rows, then D's.
