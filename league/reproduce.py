@@ -120,16 +120,23 @@ def train(job: Job, log: Path | None) -> None:
     train_run(f"attacker_method{job.method}", job.run_dir, job.overrides, label, log)
 
 
+def say(line: str) -> None:
+    """One line in one write: ``--jobs`` trains from several threads, and ``print`` writes
+    the text and its newline apart (two runs' lines ran together)."""
+    sys.stdout.write(line + "\n")
+    sys.stdout.flush()
+
+
 def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | None = None) -> None:
     """Train a ``league.run`` to the end: skip it when finished, resume it when it has a
     checkpoint, else start it from ``config`` with ``overrides`` (``--set`` items)."""
     if finished(run_dir):
-        print(f"reusing {run_dir} (finished)", flush=True)
+        say(f"reusing {run_dir} (finished)")
         return
     out = open(log, "a") if log else None
     try:
         if resumable(run_dir):
-            print(f"resuming {run_dir}", flush=True)
+            say(f"resuming {run_dir}")
             subprocess.run([sys.executable, "-m", "league.run", "--resume", str(run_dir)], stdout=out, stderr=out, check=True)
             return
         if run_dir.exists():  # killed before its first checkpoint: nothing to resume
@@ -138,7 +145,7 @@ def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | Non
         command = [sys.executable, "-m", "league.run", "--config", config, "--run-dir", str(run_dir)]
         for item in overrides:
             command += ["--set", item]
-        print(f"training {label} -> {run_dir}", flush=True)
+        say(f"training {label} -> {run_dir}")
         subprocess.run(command, stdout=out, stderr=out, check=True)
     finally:
         if out:
