@@ -36,6 +36,8 @@ global state that their RLModule decodes on the other paths.
 from __future__ import annotations
 
 import math
+import pickle
+import random
 import time
 from collections import Counter, defaultdict
 from dataclasses import dataclass
@@ -106,7 +108,11 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             raise ValueError("BatchedEnvRunner runs RLlib's default connectors only: use the standard sampler")
         self.games: TargetDefenseVectorEnv | None = None
         self.rollout: Rollout | None = None
+        self._needs_seeded_reset = True
         super().__init__(config=config, **kwargs)
+        # Episodes are named by the iteration that started them and a count (``begin_iteration``),
+        # not at random: the league's mapping draws each episode's match from its name.
+        self._episode_prefix, self._episode_count = f"s{compat.env_runner_seed(self)}-w{self.worker_index}-", 0
 
     def make_env(self) -> None:
         # The standard sub-envs stay for what RLlib reads off them (spaces, callbacks);
@@ -115,12 +121,56 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self.games = TargetDefenseVectorEnv(dict(self.config.env_config), self.num_envs)
         # The league's mapping (`MatchPlan`) reads only the episode's id: no episode object
         # is built per game (RLlib's ids are uuid4 hex strings too).
-        self.rollout = Rollout(self.games, lambda agent, episode_id: self.config.policy_mapping_fn(agent, EpisodeRef(episode_id)))
+        self.rollout = Rollout(
+            self.games,
+            lambda agent, episode_id: self.config.policy_mapping_fn(agent, EpisodeRef(episode_id)),
+            new_episode_id=self._new_episode_id,
+        )
         env = self.env.envs[0].unwrapped
         self._spaces = (dict(env.observation_spaces), dict(env.action_spaces))
         # As the standard runner: a new env, or a sample by episode count, starts every game
         # anew from the seed; `force_reset` starts them anew where their generators are.
         self._needs_seeded_reset = True
+
+    def _new_episode_id(self) -> str:
+        self._episode_count += 1
+        return f"{self._episode_prefix}{self._episode_count}"
+
+    # ------------------------------------------------------------------ iterations
+    def begin_iteration(self, seed: int, iteration: int) -> None:
+        """Seed what this iteration's sampling draws from, by (run seed, iteration, worker index):
+        torch's, NumPy's and Python's global generators (the actions explored; in the driver,
+        also the Learner's minibatch shuffles) and the names of new episodes. The games' own
+        generators go on from where they are: they travel with the games in flight
+        (``games_in_flight``)."""
+        seed_iteration(self, seed, iteration)
+        self._episode_prefix, self._episode_count = f"i{iteration}-w{self.worker_index}-", 0
+
+    def games_in_flight(self) -> bytes:
+        """Everything the next ``sample`` call continues from, pickled: the games as they are
+        (positions, per-game memory, generators), who plays each and how far each episode got.
+        A checkpoint keeps it, so a resumed run goes on with the same games (``restore_games``)."""
+        rollout = self.rollout
+        state = {"needs_seeded_reset": self._needs_seeded_reset, "episode": (self._episode_prefix, self._episode_count)}
+        if rollout is not None:
+            state["games"] = self.games
+            state["rollout"] = {k: getattr(rollout, k) for k in ("module_ids", "modules", "episode_ids", "env_t", "returns", "observations")}
+            state["chunks"] = {k: getattr(self, k) for k in ("_first_infos", "_earlier_chunks") if hasattr(self, k)}
+        return pickle.dumps(state)
+
+    def restore_games(self, data: bytes) -> None:
+        """Continue the games in flight of ``games_in_flight`` (of the runner with this worker index)."""
+        state = pickle.loads(data)
+        self._needs_seeded_reset = state["needs_seeded_reset"]
+        self._episode_prefix, self._episode_count = state["episode"]
+        if "games" in state and self.rollout is not None:
+            self.games = self.rollout.games = state["games"]
+            for key, value in state["rollout"].items():
+                setattr(self.rollout, key, value)
+            self.rollout.started[:] = time.perf_counter()  # wall clock: the episodes' durations restart
+            self._finished, self._outcomes = [], Counter()
+            for key, value in state["chunks"].items():
+                setattr(self, key, value)
 
     # ------------------------------------------------------------------ sample
     def sample(
@@ -435,6 +485,15 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 module_id = self.rollout.module_ids[index]
                 self.metrics.log_value((NUM_MODULE_STEPS_SAMPLED, module_id), steps, reduce="sum")
                 self.metrics.log_value((NUM_MODULE_STEPS_SAMPLED_LIFETIME, module_id), steps, reduce="lifetime_sum")
+
+
+def seed_iteration(env_runner: Any, seed: int, iteration: int) -> None:
+    """Seed torch's, NumPy's and Python's global generators in ``env_runner``'s process for one
+    iteration, from (``seed``, ``iteration``, its worker index); any env runner."""
+    words = np.random.SeedSequence([seed, iteration, env_runner.worker_index]).generate_state(3)
+    torch.manual_seed(int(words[0]))
+    np.random.seed(int(words[1]))
+    random.seed(int(words[2]))
 
 
 def log_outcome(metrics: Any, modules: list[str], outcome: str, count: int = 1) -> None:

@@ -9,6 +9,7 @@ with code 2 before anything is written.
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 from pathlib import Path
@@ -322,13 +323,34 @@ def _validate(data: dict[str, Any], source: Path, overrides: list[str] | None = 
         problems = []
         for e in err.errors():
             key = ".".join(str(p) for p in e["loc"])
-            # A key given with --set is reported as coming from --set, not from the file.
+            # A problem with a key given with --set, inside it or in the section it names
+            # (an unknown key, a section's own check), is reported as coming from --set.
             origin = next(
-                (f"--set {item}" for item, k in zip(overrides or [], overridden) if key == k or key.startswith(k + ".")),
+                (
+                    f"--set {item}"
+                    for item, k in zip(overrides or [], overridden)
+                    if (key and (key == k or key.startswith(k + ".") or k.startswith(key + ".")))
+                    or (not key and k in e["msg"])  # a check across sections names its keys
+                ),
                 str(source),
             )
-            problems.append(f"{origin}: {key or '(top level)'}: {e['msg']}")
+            hint = ""
+            if e["type"] == "extra_forbidden":
+                close = difflib.get_close_matches(str(e["loc"][-1]), _fields_at(e["loc"][:-1]), n=1)
+                hint = f" (did you mean {'.'.join([*map(str, e['loc'][:-1]), close[0]])}?)" if close else ""
+            problems.append(f"{origin}: {key or '(top level)'}: {e['msg']}{hint}")
         raise ConfigError("; ".join(problems)) from err
+
+
+def _fields_at(loc: tuple) -> list[str]:
+    """The keys of the config section at ``loc`` (``("ppo",)``: PPOSettings' fields)."""
+    model: Any = RunConfig
+    for part in loc:
+        field = model.model_fields.get(str(part)) if isinstance(model, type) and issubclass(model, BaseModel) else None
+        if field is None:
+            return []
+        model = field.annotation
+    return list(model.model_fields) if isinstance(model, type) and issubclass(model, BaseModel) else []
 
 
 def load_config(name: str, overrides: list[str] | None = None) -> RunConfig:

@@ -22,6 +22,7 @@ checkpoint 0), ``Coordinator.resume`` (back to an intact checkpoint), ``train``,
 from __future__ import annotations
 
 import json
+import pickle
 import shutil
 import time
 from contextlib import nullcontext
@@ -46,6 +47,7 @@ from league.stop import StopRequests
 from league.store import LeagueStore
 
 CHECKPOINTS_KEPT = 2
+GAMES_FILE = "games_in_flight.pkl"  # in a checkpoint directory: the env runners' games in flight
 EVALUATION_FILE = "evaluation.md"
 
 
@@ -126,6 +128,9 @@ class Coordinator:
         prune_checkpoints(run_dir, store)
         _, _, state_json = store.last_checkpoint()
         algo = bridge.restore_algorithm(run_dir / checkpoint)
+        games = run_dir / checkpoint / GAMES_FILE
+        if games.exists():  # (a checkpoint written before games in flight were kept has none: they start anew)
+            bridge.restore_games(algo, pickle.loads(games.read_bytes()))
         return cls(run, run_dir, store, algo, RunState.from_json(state_json))
 
     # ------------------------------------------------------------ league views
@@ -202,6 +207,7 @@ class Coordinator:
         due, end the phase when the schedule says so, checkpoint when due, commit, report."""
         plan, weights = self.match_plan()
         bridge.set_match_plan(self.algo, plan)
+        bridge.begin_iteration(self.algo, self.run.seed, self.state.iteration + 1)
         started = time.perf_counter()
         with stop.interruptible() if stop else nullcontext():
             result = self.algo.train()
@@ -398,6 +404,7 @@ class Coordinator:
                 shutil.rmtree(stale)
         try:
             self.algo.save_to_path(str(partial))
+            (partial / GAMES_FILE).write_bytes(pickle.dumps(bridge.games_in_flight(self.algo)))
             write_manifest(partial)
         except BaseException:
             shutil.rmtree(partial, ignore_errors=True)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import warnings
 from pathlib import Path
@@ -53,6 +54,10 @@ class ExportedPolicy(nn.Module):
         self.observation_size = observation_size
 
     def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        # A batch of another width (another agent's observation, a wrong layout) is refused, not
+        # sliced: in TorchScript here; `torch.export` and ONNX check the traced shape themselves.
+        if observation.dim() != 2 or observation.size(1) != self.observation_size:
+            raise ValueError("observation must be a float32 batch (B, size) of this agent's observation size (metadata.json)")
         return self.actor(split_policy_input(observation, self.observation_size)[0])
 
 
@@ -133,12 +138,17 @@ def build(run_dir: Path, spec: str) -> tuple[ExportedPolicy, dict[str, Any]]:
 def export(policy: ExportedPolicy, info: dict[str, Any], fmt: str, out: Path) -> None:
     example = torch.zeros(1, info["observation"]["size"])
     out.parent.mkdir(parents=True, exist_ok=True)
-    partial = out.with_suffix(".partial" + out.suffix)  # keeps the suffix torch.export.save expects
+    # Written under its own name in a hidden directory beside it (the archive's folder inside
+    # the file is named after the file), then moved: never a half-written file under that name.
+    scratch = out.parent / f".{out.name}.partial"
+    shutil.rmtree(scratch, ignore_errors=True)
+    scratch.mkdir()
     try:
+        partial = scratch / out.name
         _write(policy, info, fmt, example, partial)
-        partial.replace(out)  # never leave a half-written file under the requested name
+        partial.replace(out)
     finally:
-        partial.unlink(missing_ok=True)
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 def _write(policy: ExportedPolicy, info: dict[str, Any], fmt: str, example: torch.Tensor, partial: Path) -> None:

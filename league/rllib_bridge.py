@@ -30,7 +30,7 @@ from envs.agents import AGENTS
 from envs.observations import observation_size
 from envs.rllib_env import TargetDefenseMultiAgentEnv, policy_input_space
 from envs.single import action_space
-from league.batched_env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, log_outcome
+from league.batched_env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, log_outcome, seed_iteration
 from league import rllib_compat as compat
 from league.config import RunConfig
 from league.flat_adam import FlatAdam
@@ -238,10 +238,12 @@ class LeaguePPO(PPO):
             else:
                 steps = math.ceil(config.total_train_batch_size / max(1, group.num_healthy_remote_env_runners()))
                 sampled = group.foreach_env_runner(
-                    lambda runner: (runner.sample_training_data(steps), runner.get_metrics()),
+                    lambda runner: (runner.worker_index, runner.sample_training_data(steps), runner.get_metrics()),
                     local_env_runner=False,
                     timeout_seconds=config.sample_timeout_s,
                 )
+                # In worker order, whichever answered first: the batch's row order is the Learner's.
+                sampled = [(data, metrics) for _, data, metrics in sorted(sampled, key=lambda r: r[0])]
             if not sampled:
                 return
             self.metrics.aggregate([metrics for _, metrics in sampled], key=ENV_RUNNER_RESULTS)
@@ -360,6 +362,20 @@ class LeaguePPOLearner(PPOTorchLearner):
     """
 
     update_seconds = 0.0  # wall time of ``update`` calls since the last ``take_update_seconds``
+
+    KL_COEFFS_KEY = "league_kl_coeffs"
+
+    # PPO's adaptive KL coefficients are part of the Learner's state here: RLlib's (Ray 2.60)
+    # leaves them out, so a resumed run would restart them at `kl_coeff` and train otherwise.
+    def get_state(self, components: Any = None, *, not_components: Any = None, **kwargs: Any) -> dict[str, Any]:
+        state = super().get_state(components, not_components=not_components, **kwargs)
+        state[self.KL_COEFFS_KEY] = {m: float(c) for m, c in self.curr_kl_coeffs_per_module.items()}
+        return state
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        super().set_state(state)
+        for module_id, coeff in state.get(self.KL_COEFFS_KEY, {}).items():
+            self.curr_kl_coeffs_per_module[module_id].data.fill_(coeff)
 
     def configure_optimizers_for_module(self, module_id: str, config: Any = None) -> None:
         """RLlib's Adam (``TorchLearner``'s), stepping all tensors in foreach passes (the
@@ -541,7 +557,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             },
         )
         .multi_agent(
-            policies=set(specs),
+            policies=list(specs),
             policy_mapping_fn=plan,
             policies_to_train=[p.name for p in players if p.trains],
         )
@@ -576,6 +592,39 @@ def set_match_plan(algo: Algorithm, plan: MatchPlan) -> None:
     algo.env_runner_group.foreach_env_runner(
         lambda runner: runner.config.multi_agent(policy_mapping_fn=plan), local_env_runner=True
     )
+
+
+def begin_iteration(algo: Algorithm, seed: int, iteration: int) -> None:
+    """Seed every env runner's (and the driver's) generators for ``iteration`` of a run seeded
+    ``seed`` (``BatchedEnvRunner.begin_iteration``): an iteration then depends only on the
+    checkpointed state it starts from, not on how the process got there."""
+
+    def begin(runner: Any) -> None:
+        if isinstance(runner, BatchedEnvRunner):
+            runner.begin_iteration(seed, iteration)
+        else:  # RLlib's own runner (`sampler: standard`) names its episodes at random all the same
+            seed_iteration(runner, seed, iteration)
+
+    algo.env_runner_group.foreach_env_runner(begin, local_env_runner=True)
+
+
+def games_in_flight(algo: Algorithm) -> dict[int, bytes]:
+    """Each fast or batched env runner's games in flight (``BatchedEnvRunner.games_in_flight``), by worker index."""
+    states = algo.env_runner_group.foreach_env_runner(
+        lambda runner: (runner.worker_index, runner.games_in_flight()) if isinstance(runner, BatchedEnvRunner) else None,
+        local_env_runner=True,
+    )
+    return dict(state for state in states if state is not None)
+
+
+def restore_games(algo: Algorithm, states: dict[int, bytes]) -> None:
+    """Hand each env runner its games in flight from ``games_in_flight`` (a runner without any starts anew)."""
+
+    def restore(runner: Any) -> None:
+        if isinstance(runner, BatchedEnvRunner) and runner.worker_index in states:
+            runner.restore_games(states[runner.worker_index])
+
+    algo.env_runner_group.foreach_env_runner(restore, local_env_runner=True)
 
 
 def set_trainable(algo: Algorithm, module_ids: list[str]) -> None:

@@ -60,10 +60,14 @@ class Rollout:
     ``envs.match`` does."""
 
     def __init__(
-        self, games: TargetDefenseVectorEnv, module_for: Callable[[str, str], str], action_dtype: Any = np.float32
+        self, games: TargetDefenseVectorEnv, module_for: Callable[[str, str], str], action_dtype: Any = np.float32,
+        new_episode_id: Callable[[], str] = lambda: uuid.uuid4().hex,
     ):
+        """``new_episode_id()`` names each new episode; ``module_for`` may draw its match from
+        the name, so a reproducible run names its episodes reproducibly (the sampler does)."""
         self.games = games
         self.module_for = module_for
+        self.new_episode_id = new_episode_id
         self.action_dtype = action_dtype
         n = games.num_games
         self.module_ids: list[str] = []  # modules of the games, indexed by `modules`
@@ -93,7 +97,7 @@ class Rollout:
 
     def start_episode(self, game: int) -> None:
         """A fresh episode id for ``game``, and its agents' modules from ``module_for``."""
-        episode_id = uuid.uuid4().hex
+        episode_id = self.new_episode_id()
         self.episode_ids[game] = episode_id
         for i, agent in enumerate(AGENTS):
             module_id = self.module_for(agent, episode_id)

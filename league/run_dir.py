@@ -189,3 +189,37 @@ def disk_full_message(run_dir: Path, store: LeagueStore | None) -> str:
         f"the last checkpoint (iteration {usable[0][0]}) is intact: free space, then resume with "
         f"`python -m league.run --resume {run_dir}`"
     )
+
+
+def run_differences(first: Path, second: Path) -> list[str]:
+    """Where two run directories differ, one line each (empty: the same run): every table of
+    their ``league.db`` but the wall-clock columns (``LeagueStore.contents``), and the weights
+    of every saved player, bit for bit."""
+    import pickle
+
+    import numpy as np
+
+    differences = []
+    stores = [LeagueStore(Path(first)), LeagueStore(Path(second))]
+    try:
+        contents = [store.contents() for store in stores]
+    finally:
+        for store in stores:
+            store.close()
+    for table in sorted(set(contents[0]) | set(contents[1])):
+        rows = [contents[0].get(table, []), contents[1].get(table, [])]
+        if rows[0] != rows[1]:
+            extra = [row for row in rows[0] if row not in rows[1]] + [row for row in rows[1] if row not in rows[0]]
+            differences.append(f"{table}: {len(rows[0])} and {len(rows[1])} rows, first differing: {extra[:1]}")
+    players = [{p.parent.name for p in Path(run).glob("players/*/module_state.pkl")} for run in (first, second)]
+    if players[0] != players[1]:
+        differences.append(f"saved players: {sorted(players[0] ^ players[1])} in one run only")
+    for name in sorted(players[0] & players[1]):
+        states = []
+        for run in (first, second):
+            with open(Path(run) / "players" / name / "module_state.pkl", "rb") as file:
+                states.append(pickle.load(file))
+        different = [k for k in states[0] if k not in states[1] or not np.array_equal(states[0][k], states[1][k])]
+        if different or set(states[1]) - set(states[0]):
+            differences.append(f"player {name}: weights differ ({', '.join(different) or 'tensor names'})")
+    return differences

@@ -111,6 +111,14 @@ CREATE TABLE IF NOT EXISTS curve_references (  -- league.curves: a reference pla
 
 TABLES = ("players", "matches", "ratings", "iterations", "checkpoints", "meta")
 
+# Columns that hold when something happened or how long it took: the only ones in which two
+# runs of one config and seed may differ (``LeagueStore.contents``).
+WALL_CLOCK_COLUMNS = {
+    "players": ("created_at",),
+    "iterations": ("steps_per_second", "wall_seconds"),
+    "checkpoints": ("created_at",),
+}
+
 PLAYER_COLUMNS = (
     "id, side, kind, version, reward_method, parent, scripted_attacker, scripted_targeter, "
     "scripted_defender, env_steps, checkpoint, created_iteration, seed, env_step_budget"
@@ -194,6 +202,18 @@ class LeagueStore:
             self.db.execute("ROLLBACK")
             raise
         self.db.execute("COMMIT")
+
+    def contents(self) -> dict[str, list[tuple]]:
+        """Every table's rows, sorted, without ``WALL_CLOCK_COLUMNS``: what two runs of one
+        config and seed have in common (all of it, for the fast and batched samplers)."""
+        tables = [name for (name,) in self.db.execute("SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")]
+        contents = {}
+        for table in tables:
+            columns = [row[1] for row in self.db.execute(f"PRAGMA table_info({table})")]
+            kept = [c for c in columns if c not in WALL_CLOCK_COLUMNS.get(table, ())]
+            listed = ", ".join(kept)
+            contents[table] = self.db.execute(f"SELECT {listed} FROM {table} ORDER BY {listed}").fetchall()
+        return contents
 
     # ---------------------------------------------------------------- meta
     def set_meta(self, key: str, value: Any) -> None:

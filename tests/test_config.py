@@ -40,3 +40,22 @@ def test_defaults_follow_the_paper():
     assert config.attacker_radius == 0.18 and config.defender_radius == 0.18
     assert config.terminal_sphere_radius == 0.13
     assert (config.w_t1, config.w_t2, config.overchase_gamma, config.axis_length) == (0.6, 0.4, 1.08, 0.1)
+
+
+@pytest.mark.parametrize(
+    "override, named",
+    [
+        ("nosuch.key=1", "--set nosuch.key=1: nosuch: Extra inputs are not permitted"),
+        ("ppo.lr.x=1", "--set ppo.lr.x=1: ppo.lr:"),
+        ("ppo.minibatch_size=999999", "--set ppo.minibatch_size=999999: (top level): Value error, ppo.minibatch_size"),
+        ("seeed=1", "(did you mean seed?)"),
+        ("ppo.hiden=[8]", "(did you mean ppo.hidden?)"),
+    ],
+)
+def test_a_set_mistake_is_blamed_on_the_set_not_the_file(override, named):
+    from league.config import ConfigError, load_config
+
+    with pytest.raises(ConfigError) as raised:
+        load_config("smoke", [override])
+    assert named in str(raised.value)
+    assert "smoke.yaml" not in str(raised.value)

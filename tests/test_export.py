@@ -126,6 +126,8 @@ def test_exported_policy_plays_the_same_episodes_as_in_the_league(run_dir, tmp_p
     exported = dict(inside)
     exported["attacker"] = ExportedAgent(torch.export.load(str(out)).module(), "attacker")
     a, b = play(GameConfig(), inside, games), play(GameConfig(), exported, games)
+    # Exact outcomes: both run the module's own operations on the same 300-row batches in the
+    # same order (the exported graph is traced from them), so they round alike on any CPU.
     np.testing.assert_array_equal(a.outcome, b.outcome)
     np.testing.assert_array_equal(a.steps, b.steps)
     np.testing.assert_allclose(a.returns, b.returns, atol=1e-4)
@@ -153,3 +155,25 @@ def test_readme_example_runs(run_dir, tmp_path):
     block = readme.split("<!-- export-example -->", 1)[1].split("```python", 1)[1].split("```", 1)[0]
     proc = subprocess.run([sys.executable, "-c", block], capture_output=True, text=True, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+@pytest.mark.parametrize("fmt, suffix", [("export", "pt2"), ("torchscript", "pt")])
+def test_an_observation_of_another_width_is_refused(run_dir, tmp_path, fmt, suffix):
+    out = tmp_path / f"attacker.{suffix}"
+    assert export_main(["--run-dir", str(run_dir), "--player", "latest-attacker", "--format", fmt, "--out", str(out)]) == 0
+    policy = torch.export.load(str(out)).module() if fmt == "export" else torch.jit.load(str(out))
+    size = load_module(run_dir / "players" / "attacker-m2-v1").actor_inputs
+    assert policy(torch.zeros(3, size)).shape == (3, 2)
+    for wrong in (torch.zeros(1, 23), torch.zeros(1, 100), torch.zeros(size)):  # the team's width, any other, no batch
+        with pytest.raises(Exception):
+            policy(wrong)
+
+
+def test_the_torchscript_archive_is_named_after_its_file(run_dir, tmp_path):
+    import zipfile
+
+    out = tmp_path / "attacker.pt"
+    assert export_main(["--run-dir", str(run_dir), "--player", "latest-attacker", "--format", "torchscript", "--out", str(out)]) == 0
+    names = zipfile.ZipFile(out).namelist()
+    assert names and all(name.startswith("attacker/") for name in names), names[:3]
+    assert [p.name for p in tmp_path.iterdir()] == ["attacker.pt"]  # nothing left beside it

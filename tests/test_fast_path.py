@@ -291,8 +291,10 @@ def test_frozen_players_play_their_mean_unless_they_explore(algo):
             _, rows, t = runner._play(10, None, True, False, episodes=False)
         finally:
             attacker.model_config["explore_when_frozen"] = True
+        # The means recomputed step by step over the same rows as the runner's forward pass (all
+        # games' attackers): a matmul over other shapes may take other kernels and round otherwise.
         with torch.no_grad():
-            means = attacker.deterministic_action(torch.from_numpy(rows.observations["attacker"][:t])).numpy()
+            means = np.stack([attacker.deterministic_action(torch.from_numpy(rows.observations["attacker"][s])).numpy() for s in range(t)])
         team = runner.module[TEAM.name]
         with torch.no_grad():
             team_means = team.deterministic_action(torch.from_numpy(rows.observations["targeter"][:t])).numpy()

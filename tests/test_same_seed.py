@@ -1,0 +1,83 @@
+"""Same config and seed, same run: two runs of the smoke league, and one killed twice and
+resumed, end with the same league database (but its wall-clock columns) and the same weights."""
+
+import os
+import random
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from league.run_dir import run_differences
+
+# The smoke league at a tiny budget: two phases of a few iterations, with learning curves and
+# a checkpoint after every iteration (a kill lands anywhere in one).
+TINY_SMOKE = [
+    "--config", "smoke",
+    "--set", "ppo.train_batch_size=1024", "--set", "ppo.minibatch_size=256",
+    "--set", "resources.num_envs_per_env_runner=32",
+    "--set", "league.phase_env_steps=3072", "--set", "league.selfplay_phases=2",
+    "--set", "evaluation.episodes=20", "--set", "evaluation.curve_episodes=20",
+    "--set", "evaluation.curve_every_env_steps=1024",
+]
+RUN_TIMEOUT = 600
+
+
+def league(*args: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "league.run", *args],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        start_new_session=True,  # its own process group: a kill reaches only this run and its Ray
+    )
+
+
+def finish(proc: subprocess.Popen) -> str:
+    out, _ = proc.communicate(timeout=RUN_TIMEOUT)
+    assert proc.returncode == 0, out[-3000:]
+    return out
+
+
+def iterations(run_dir: Path) -> int:
+    if not (run_dir / "league.db").exists():
+        return 0
+    with sqlite3.connect(run_dir / "league.db", timeout=30) as db:
+        return db.execute("SELECT COUNT(*) FROM iterations").fetchone()[0]
+
+
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory) -> Path:
+    """One uninterrupted run of the tiny smoke league."""
+    run_dir = tmp_path_factory.mktemp("same_seed") / "whole"
+    finish(league(*TINY_SMOKE, "--run-dir", str(run_dir)))
+    assert iterations(run_dir) >= 4
+    return run_dir
+
+
+def test_two_runs_with_one_seed_are_one_run(whole, tmp_path):
+    second = tmp_path / "second"
+    finish(league(*TINY_SMOKE, "--run-dir", str(second)))
+    assert run_differences(whole, second) == []
+
+
+def test_a_run_killed_twice_and_resumed_is_the_run_never_killed(whole, tmp_path):
+    killed = tmp_path / "killed"
+    total = iterations(whole)
+    moments = random.Random(0)
+    proc = league(*TINY_SMOKE, "--run-dir", str(killed))
+    for after in (1, 3):  # SIGKILL somewhere in the iteration after `after` committed ones
+        deadline = time.monotonic() + RUN_TIMEOUT
+        while iterations(killed) < after:
+            assert proc.poll() is None, proc.stdout.read()[-3000:]
+            assert time.monotonic() < deadline, f"the run did not reach iteration {after} in time"
+            time.sleep(0.05)
+        time.sleep(moments.uniform(0.0, 1.0))
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=60)
+        assert iterations(killed) < total, "the run ended before it was killed"
+        proc = league("--resume", str(killed))
+    finish(proc)
+    assert run_differences(whole, killed) == []
