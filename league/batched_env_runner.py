@@ -109,6 +109,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self.games: TargetDefenseVectorEnv | None = None
         self.rollout: Rollout | None = None
         self._needs_seeded_reset = True
+        self._restart_games = False  # `restart_games`: the next sample starts every game anew
         super().__init__(config=config, **kwargs)
         # Episodes are named by the iteration that started them and a count (``begin_iteration``),
         # not at random: the league's mapping draws each episode's match from its name.
@@ -146,12 +147,22 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         seed_iteration(self, seed, iteration)
         self._episode_prefix, self._episode_count = f"i{iteration}-w{self.worker_index}-", 0
 
+    def restart_games(self) -> None:
+        """Drop the games in flight: the next ``sample`` starts every game anew (where the games'
+        generators are). At a phase switch, so that no game of the side that stopped learning
+        is finished, counted and credited in the new phase."""
+        self._restart_games = True
+
     def games_in_flight(self) -> bytes:
         """Everything the next ``sample`` call continues from, pickled: the games as they are
         (positions, per-game memory, generators), who plays each and how far each episode got.
         A checkpoint keeps it, so a resumed run goes on with the same games (``restore_games``)."""
         rollout = self.rollout
-        state = {"needs_seeded_reset": self._needs_seeded_reset, "episode": (self._episode_prefix, self._episode_count)}
+        state = {
+            "needs_seeded_reset": self._needs_seeded_reset,
+            "restart_games": self._restart_games,
+            "episode": (self._episode_prefix, self._episode_count),
+        }
         if rollout is not None:
             state["games"] = self.games
             state["rollout"] = {k: getattr(rollout, k) for k in ("module_ids", "modules", "episode_ids", "env_t", "returns", "observations")}
@@ -162,6 +173,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         """Continue the games in flight of ``games_in_flight`` (of the runner with this worker index)."""
         state = pickle.loads(data)
         self._needs_seeded_reset = state["needs_seeded_reset"]
+        self._restart_games = state.get("restart_games", False)
         self._episode_prefix, self._episode_count = state["episode"]
         if "games" in state and self.rollout is not None:
             self.games = self.rollout.games = state["games"]
@@ -194,7 +206,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                 episodes, _, _ = self._play(None, num_episodes, explore, random_actions)
                 self._needs_seeded_reset = True
             else:
-                if force_reset or self._needs_seeded_reset:
+                if force_reset or self._needs_seeded_reset or self._restart_games:
                     self._reset_all()
                 else:  # the fast path may have left some agents' observations out
                     self.rollout.observations = self.games.observations()
@@ -222,7 +234,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
             raise ValueError(f"{self} has no env: it is a local runner beside remote ones")
         self.metrics.log_value(key=WEIGHTS_SEQ_NO, value=compat.weights_seq_no(self), window=1)
         with self.metrics.log_time(SAMPLE_TIMER):
-            if self._needs_seeded_reset:
+            if self._needs_seeded_reset or self._restart_games:
                 self._reset_all()
             _, rows, t = self._play(math.ceil(num_timesteps / self.num_envs), None, True, False, episodes=False)
             self.rollout.env_t += t - rows.chunk_start  # the unfinished episodes go on in the next call
@@ -236,7 +248,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         self._finished: list[tuple] = []  # (length, agent returns, module returns, seconds) per episode
         self._outcomes: Counter[tuple[tuple[str, ...], str]] = Counter()  # finished games by (modules, outcome)
         self.rollout.reset(seed=compat.env_runner_seed(self) if self._needs_seeded_reset else None)
-        self._needs_seeded_reset = False
+        self._needs_seeded_reset = self._restart_games = False
 
     def _play(
         self, num_steps: int | None, num_episodes: int | None, explore: bool, random_actions: bool, episodes: bool = True

@@ -247,9 +247,8 @@ class Coordinator:
         counts; returns its outcome rows and env steps.
 
         An exploiter's games and env steps are not the phase's progress: the phase counts its
-        learners' wins and episodes, and every env step but the exploiters' (as without
-        exploiters, that includes the last games of the previous phase's side that end in
-        this phase's first iteration)."""
+        learners' wins and episodes, and every env step but the exploiters' (a phase starts
+        with new games: none of the previous phase's side is finished in it)."""
         st, phase = self.state, self.state.phase
         rows = self.outcome_rows(result)
         learner_ids = {p.id for p in self.learners(phase.side)}
@@ -329,6 +328,9 @@ class Coordinator:
         side = self.schedule.side(index)
         self.state.phase = PhaseState(index=index, side=side, start_iteration=self.state.iteration)
         self.set_trainable(side)
+        # A phase starts with new games: the old phase's learner plays no game of the new one
+        # (its unfinished games trained it as truncated chunks, and are not counted as played).
+        bridge.restart_games(self.algo)
 
     def set_trainable(self, side: str) -> None:
         bridge.set_trainable(self.algo, [trainee.name for trainee in self.trainees(side)])
@@ -426,13 +428,14 @@ class Coordinator:
             self.train_iteration(progress, stop)
 
     def finish(self, progress: ProgressReporter, stop: StopRequests) -> None:
-        """The run's end: the whole frozen league evaluated (unless the last iteration's
-        evaluation is already recorded), the evaluation workers and the algorithm stopped."""
+        """The run's end: the algorithm stopped first (its env runners' CPUs go to the evaluation
+        workers, which play saved modules), then the whole frozen league evaluated (unless the
+        last iteration's evaluation is already recorded) and the evaluation workers stopped."""
+        self.algo.stop()
         if self.store.get_meta("evaluated_iteration") != self.state.iteration:
             self.evaluate_league(progress, stop)
         if self.evaluation_pool is not None:
             self.evaluation_pool.close()
-        self.algo.stop()
 
     def evaluate_league(self, progress: ProgressReporter, stop: StopRequests) -> Path:
         """Every frozen attacker against every frozen team on the fixed evaluation games:

@@ -32,6 +32,7 @@ from league.payoff import wilson_interval
 from league.players import Player
 from league.rollout import ModuleAct, Policy, Rollout, ScriptedOnState
 
+WORKER_START_S = 60.0  # how long evaluation workers may take to start before the driver plays their games
 EVALUATION_CHUNK = 64  # steps per rollout play: bounds the rows kept, whatever the number of games
 
 def deterministic(module: torch.nn.Module) -> ModuleAct:
@@ -162,6 +163,9 @@ class EvaluationWorker:
         self.game = GameConfig(**game)
         torch.set_num_threads(torch_threads)
 
+    def ready(self) -> bool:
+        return True
+
     def play(
         self, attacker: Player, team: Player, start: int, episodes: int,
         attacker_module: torch.nn.Module | None = None, team_module: torch.nn.Module | None = None,
@@ -196,8 +200,19 @@ class EvaluationPool:
         self.game, self.run_dir, self.log = game, Path(run_dir), log
         actor_class = ray.remote(num_cpus=cpus_per_worker, resources=resources or {}, scheduling_strategy="SPREAD")
         threads = torch_threads or max(1, int(cpus_per_worker))  # as `Resources.threads_for`
-        self.actors = [actor_class(EvaluationWorker).remote(game.model_dump(), threads) for _ in range(workers)]
         self.sent: dict[tuple[str, float], Any] = {}  # (module path, mtime) -> object ref
+        self.actors = [actor_class(EvaluationWorker).remote(game.model_dump(), threads) for _ in range(workers)]
+        # Bounded: workers that cannot be placed (their CPUs held by env runners) would wait forever.
+        _, pending = ray.wait([actor.ready.remote() for actor in self.actors], num_returns=workers, timeout=WORKER_START_S)
+        if pending:
+            free = ray.available_resources().get("CPU", 0.0)
+            log(
+                f"{len(pending)} of {workers} evaluation workers did not start within {WORKER_START_S:.0f} s (each "
+                f"needs {cpus_per_worker} CPU{' and ' + str(resources) if resources else ''}; {free:g} CPUs free): "
+                "evaluating in the driver instead"
+            )
+            self.close()
+            self.actors = []
 
     def module_ref(self, player: Player) -> Any:
         import ray

@@ -617,6 +617,16 @@ def games_in_flight(algo: Algorithm) -> dict[int, bytes]:
     return dict(state for state in states if state is not None)
 
 
+def restart_games(algo: Algorithm) -> None:
+    """Every fast or batched env runner drops its games in flight (``BatchedEnvRunner.restart_games``)."""
+
+    def restart(runner: Any) -> None:
+        if isinstance(runner, BatchedEnvRunner):
+            runner.restart_games()
+
+    algo.env_runner_group.foreach_env_runner(restart, local_env_runner=True)
+
+
 def restore_games(algo: Algorithm, states: dict[int, bytes]) -> None:
     """Hand each env runner its games in flight from ``games_in_flight`` (a runner without any starts anew)."""
 

@@ -58,7 +58,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--run-dir", type=Path, help="where to write the run (default runs/NAME-TIME)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue this run from its last checkpoint")
     parser.add_argument("--address", help="address of a running Ray cluster to join (e.g. auto, host:6379)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument(
+        "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+        help="override a config key (dotted, the value read as YAML: --set ppo.lr=1e-3 --set 'ppo.hidden=[128, 128]'); "
+        "repeatable; the keys are the fields of league/config.py (RunConfig)",
+    )
     args = parser.parse_args(argv)
     if bool(args.config) == bool(args.resume):
         parser.error("give exactly one of --config and --resume")
@@ -215,7 +219,8 @@ def main(argv: list[str] | None = None) -> int:
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    except Stopped as stopped:
+    except KeyboardInterrupt as interrupted:  # `Stopped`, or a library's own KeyboardInterrupt raised from it (`ray.get`)
+        stopped = interrupted if isinstance(interrupted, Stopped) else Stopped(stop.signum or signal.SIGINT)
         stop.ignore()  # a second Ctrl-C must not break the shutdown below
         print(stopped_message(run_dir, store), file=sys.stderr)
         return stopped.exit_code

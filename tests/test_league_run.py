@@ -69,6 +69,18 @@ def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
     phases = query(run_dir, "SELECT DISTINCT phase, learner_side FROM iterations ORDER BY phase")
     assert phases == [(0, "attacker"), (1, "team"), (2, "attacker")]
     assert query(run_dir, "SELECT COUNT(*) FROM matches WHERE source = 'training'")[0][0] > 0
+    # A phase starts with new games: no training game of a learner outside its own phases,
+    # and each learner's env steps end where its last snapshot was taken.
+    stray = query(run_dir, """
+        SELECT COUNT(*) FROM matches m JOIN iterations i ON i.iteration = m.iteration
+        JOIN players a ON a.id = m.attacker JOIN players t ON t.id = m.team
+        WHERE m.source = 'training'
+          AND ((a.kind = 'learner' AND i.learner_side = 'team') OR (t.kind = 'learner' AND i.learner_side = 'attacker'))""")
+    assert stray == [(0,)]
+    steps = query(run_dir, """
+        SELECT l.env_steps, (SELECT s.env_steps FROM players s WHERE s.parent = l.id ORDER BY s.version DESC LIMIT 1)
+        FROM players l WHERE l.kind = 'learner'""")
+    assert all(learner == snapshot for learner, snapshot in steps), steps
     assert query(run_dir, "SELECT COUNT(DISTINCT attacker || '-' || team) FROM matches WHERE source = 'evaluation'")[0][0] == 4 * 3  # attackers: scripted, v0-v2; teams: scripted, v0, v1
     assert (run_dir / "evaluation.md").read_text().count("\n| ") >= 12
     assert list((run_dir / "tensorboard").glob("events.out.tfevents.*"))
@@ -128,3 +140,16 @@ def test_resume_after_sigkill_loses_and_duplicates_nothing(tmp_path, tiny_config
     assert phases == [0, 1, 2, 3]
     assert (run_dir / "evaluation.md").exists()
     assert not list((run_dir / "checkpoints").glob("*.partial"))
+
+
+def test_remote_env_runners_holding_every_cpu_do_not_hang_the_final_evaluation(tmp_path, tiny_config):
+    # 2 env runners of 1 CPU each take both CPUs of the run's Ray instance; its 2 evaluation
+    # workers (0.5 CPU each) can start only once the algorithm has stopped.
+    run_dir = tmp_path / "run"
+    out = finish(league(
+        "--config", tiny_config(1, 400), "--run-dir", str(run_dir),
+        "--set", "resources.num_env_runners=2", "--set", "resources.num_cpus_per_env_runner=1",
+        "--set", "evaluation.workers=2",
+    ))
+    assert "evaluation of" in out and "evaluating in the driver" not in out
+    assert query(run_dir, "SELECT COUNT(*) FROM matches WHERE source = 'evaluation'")[0][0] > 0

@@ -407,3 +407,34 @@ def test_pettingzoo_env_refuses_step_before_reset_nan_positions_and_complex_inpu
         env.step({**still, "defender": np.array([0.5 + 0.5j, 0.0])})
     _, rewards, terminations, _, _ = env.step(still)  # the refused steps left the game untouched
     assert not any(terminations.values()) and set(rewards) == set(env.possible_agents)
+
+
+def test_a_keyboard_interrupt_from_inside_a_library_is_a_stop_not_a_traceback(tiny_config, tmp_path, monkeypatch, capsys):
+    # Ctrl-C during the final evaluation can surface as the KeyboardInterrupt of `ray.get`
+    # rather than the run's own `Stopped`: the same one line and exit code all the same.
+    from types import SimpleNamespace
+
+    class Coordinator:
+        def __init__(self, run_dir):
+            self.store = LeagueStore(run_dir, create=True)
+            self.state = SimpleNamespace(iteration=0)
+
+        def train(self, progress, stop):
+            pass
+
+        def finish(self, progress, stop):
+            raise KeyboardInterrupt
+
+    run_dir = tmp_path / "new"
+    monkeypatch.setattr(run, "start_ray", lambda *args: None)
+    monkeypatch.setattr(run, "new_run", lambda config, directory, stop: Coordinator(directory))
+    try:
+        code = run.main(["--config", tiny_config(), "--run-dir", str(run_dir)])
+    except KeyboardInterrupt:
+        pytest.fail("the KeyboardInterrupt escaped main()")
+    assert code == 130
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert err.strip().splitlines()[-1] == (
+        f"stopped at iteration 0, last checkpoint none, resume with `python -m league.run --resume {run_dir.resolve()}`"
+    )
