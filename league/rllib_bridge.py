@@ -16,9 +16,11 @@ touches RLlib's private attributes and episode internals. Checkpoints are loaded
 from __future__ import annotations
 
 import functools
+import logging
 import math
 import random
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -64,6 +66,18 @@ from ray.rllib.utils.metrics import (
     TIMERS,
 )
 
+
+
+class _NotTheNews(logging.Filter):
+    """Drops RLlib's banner on every config built ("You are running PPO on the new API stack!")."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "on the new API stack" not in record.getMessage()
+
+
+logging.getLogger("ray.rllib.algorithms.algorithm_config").addFilter(_NotTheNews())
+# RLlib registers the env with gymnasium anew for every algorithm built; gymnasium then warns, in colour.
+warnings.filterwarnings("ignore", message=r".*Overriding environment .* already in registry")
 
 
 def env_config(run: RunConfig) -> dict[str, Any]:

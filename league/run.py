@@ -170,6 +170,15 @@ def open_for_training(args: argparse.Namespace) -> tuple[RunConfig, Path, League
     return run, run_dir, None, lock, created
 
 
+def finished_iteration(run_dir: Path, store: LeagueStore) -> int | None:
+    """The last iteration of a run that trained to its end and was evaluated, its newest
+    checkpoint intact, else None."""
+    checkpoint = store.last_checkpoint()
+    if checkpoint is None or not checkpoint[2].get("training_done") or usable_checkpoints(run_dir, store)[1]:
+        return None
+    return checkpoint[0] if store.get_meta("evaluated_iteration") == checkpoint[0] else None
+
+
 def stopped_message(run_dir: Path, store: LeagueStore | None) -> str:
     if store is None:  # a new run stopped before its first checkpoint: nothing was kept
         return f"stopped before the first checkpoint; nothing was kept in {run_dir}"
@@ -188,6 +197,12 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, RunDirError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    finished = finished_iteration(run_dir, store) if store is not None else None
+    if finished is not None:  # nothing to resume: no Ray started
+        print(f"{run_dir} is finished (iteration {finished}, evaluated); nothing to resume")
+        store.close()
+        lock.release()
+        return 0
     stop = StopRequests()
     stop.install()
 

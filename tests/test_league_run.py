@@ -87,6 +87,7 @@ def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
     last_checkpoint = query(run_dir, "SELECT path FROM checkpoints ORDER BY iteration DESC LIMIT 1")[0][0]
     assert (run_dir / last_checkpoint / "rllib_checkpoint.json").exists()
     assert "steps/s" in out and "snapshot attacker-m2-v2" in out
+    assert "new API stack" not in out and "already in registry" not in out and "\x1b[" not in out  # no library banners
 
     status = subprocess.run(
         [sys.executable, "-m", "league.status", "--run-dir", str(run_dir)], capture_output=True, text=True, check=True

@@ -438,3 +438,14 @@ def test_a_keyboard_interrupt_from_inside_a_library_is_a_stop_not_a_traceback(ti
     assert err.strip().splitlines()[-1] == (
         f"stopped at iteration 0, last checkpoint none, resume with `python -m league.run --resume {run_dir.resolve()}`"
     )
+
+
+def test_resuming_a_finished_run_says_so_without_starting_ray(run_copy, monkeypatch, capsys):
+    def no_ray(*args):
+        raise AssertionError("Ray was started for a finished run")
+
+    monkeypatch.setattr(run, "start_ray", no_ray)
+    before = query(run_copy, "SELECT * FROM iterations ORDER BY iteration")
+    assert run.main(["--resume", str(run_copy)]) == 0
+    assert "is finished" in capsys.readouterr().out
+    assert query(run_copy, "SELECT * FROM iterations ORDER BY iteration") == before
