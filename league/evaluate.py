@@ -12,7 +12,9 @@ evidence), and the ratings of that iteration are refitted with them.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+from typing import Any
 from pathlib import Path
 
 import torch
@@ -56,6 +58,19 @@ def method_table(results: list[PairEvaluation]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def evaluation_json(scenario: str, episodes: int, results: list[PairEvaluation], meta: Any) -> dict:
+    """The tables' numbers as data (``--json``; the schema is in the README, "Evaluation")."""
+    pairs = []
+    for r in results:
+        low, high = wilson_interval(r.attacker_wins, r.games)
+        pairs.append({
+            "attacker": r.attacker.name, "team": r.team.name, "games": r.games, "attacker_wins": r.attacker_wins,
+            "attacker_win_rate": r.attacker_wins / r.games, "interval_95": [low, high],
+            "outcomes": dict(r.result.outcome_counts()),
+        })
+    return {"scenario": scenario, "episodes": episodes, "pairs": pairs, "meta_game": meta.as_json() if meta else None}
+
+
 def choose(players: list[Player], names: list[str] | None) -> list[Player]:
     frozen = [p for p in players if not p.trains]
     if not names:
@@ -90,6 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--workers", type=count(0), help="evaluation actors, 0: in this process (default: the run's evaluation.workers)"
     )
+    parser.add_argument("--json", action="store_true", help="print the same numbers as one JSON object")
     args = parser.parse_args(argv)
     try:
         run, store = open_run(args.run_dir)
@@ -131,11 +147,14 @@ def main(argv: list[str] | None = None) -> int:
         for r in results:
             store.record_evaluation(iteration, r.outcome_rows())
         store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
+    attackers, teams = meta_game_players(players)
+    meta = meta_game(attackers, teams, {(r.attacker.id, r.team.id): (r.attacker_wins, r.games) for r in results})
+    if args.json:
+        print(json.dumps(evaluation_json(run.game.scenario, episodes, results, meta), indent=1))
+        return 0
     print(f"{episodes} fixed games of scenario set `{run.game.scenario}` per pair\n")
     print(format_table(results))
     print(method_table(results))
-    attackers, teams = meta_game_players(players)
-    meta = meta_game(attackers, teams, {(r.attacker.id, r.team.id): (r.attacker_wins, r.games) for r in results})
     print("## Meta-game of the evaluated players\n\n" + format_meta_game(meta, "no snapshot or scripted player on a side"))
     return 0
 

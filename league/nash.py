@@ -119,6 +119,19 @@ class MetaGame:
                     rows.append([side, players[k].name, f"{weights[k]:.3f}", f"{ratings[k]:.3f}"])
         return rows
 
+    def as_json(self) -> dict:
+        """The value and every player's Nash weight and Nash-averaged rating (``--json`` of the commands)."""
+        eq = self.equilibrium
+        players = [
+            {"side": side, "player": p.name, "nash_weight": float(w), "nash_averaged_rating": float(r)}
+            for side, group, weights, ratings in (
+                ("attacker", self.attackers, eq.row_mixture, eq.row_ratings),
+                ("team", self.teams, eq.column_mixture, eq.column_ratings),
+            )
+            for p, w, r in zip(group, weights, ratings)
+        ]
+        return {"value": float(eq.value), "players": players}
+
     def value_line(self) -> str:
         value = self.equilibrium.value
         return (

@@ -6,6 +6,7 @@ Reads only the league database, so it works while ``league.run`` trains.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -70,6 +71,41 @@ def exploitability_section(store: LeagueStore) -> list:
     return [table]
 
 
+def status_json(run_dir: Path, store: LeagueStore, source: str | None = None) -> dict:
+    """What the tables say, as data (``--json``; the schema is in the README, "Status")."""
+    last = store.last_iteration()
+    checkpoint = store.last_checkpoint()
+    seconds = store.training_seconds()
+    usable, problems = usable_checkpoints(run_dir, store)
+    ratings = store.latest_ratings()
+    payoff = aggregate(store.counted_results(source))
+    players = store.players()
+    names = {p.id: p.name for p in players}
+    rows = []
+    for player in players:
+        wins, games = player_record(payoff, player.side, player.id)
+        rows.append({
+            "player": player.name, "side": player.side, "kind": player.kind, "reward_method": player.reward_method,
+            "parent": names.get(player.parent), "env_steps": player.env_steps, "rating": ratings.get(player.id),
+            "games": games, "wins": wins, "win_rate": wins / games if games else None,
+        })
+    meta, why_not = league_meta_game(players, store.newest_evaluation_rows())
+    return {
+        "finished": bool(checkpoint and checkpoint[2].get("training_done", False)),
+        "iteration": last["iteration"] if last else 0,
+        "phase": last["phase"] + 1 if last else None,
+        "learner_side": last["learner_side"] if last else None,
+        "env_steps": last["env_steps"] if last else 0,
+        "episodes": last["episodes"] if last else 0,
+        "training_seconds": seconds,
+        "env_steps_per_second": last["env_steps"] / seconds if last and seconds > 0 else None,
+        "last_checkpoint": {"iteration": usable[0][0], "path": usable[0][1]} if usable else None,
+        "warnings": problems,
+        "players": rows,
+        "meta_game": meta.as_json() if meta is not None else {"none": why_not},
+    }
+
+
 def run_line(store: LeagueStore) -> str:
     """Where the run stands: finished or at which phase, and its average speed so far."""
     last = store.last_iteration()
@@ -90,12 +126,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m league.status", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
     parser.add_argument("--source", choices=["training", "evaluation"], help="count only these games")
+    parser.add_argument("--json", action="store_true", help="print the same numbers as one JSON object")
     args = parser.parse_args(argv)
     try:
         _, store = open_run(args.run_dir)
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    if args.json:
+        print(json.dumps(status_json(args.run_dir, store, args.source), indent=1))
+        store.close()
+        return 0
     console = Console() if sys.stdout.isatty() else Console(width=160)
     console.print(run_line(store))
     usable, problems = usable_checkpoints(args.run_dir, store)

@@ -449,3 +449,33 @@ def test_resuming_a_finished_run_says_so_without_starting_ray(run_copy, monkeypa
     assert run.main(["--resume", str(run_copy)]) == 0
     assert "is finished" in capsys.readouterr().out
     assert query(run_copy, "SELECT * FROM iterations ORDER BY iteration") == before
+
+
+def test_status_and_evaluate_give_their_numbers_as_json(run_copy, capsys):
+    import json
+
+    from league.payoff import aggregate, player_record
+
+    assert status.main(["--run-dir", str(run_copy), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    store = LeagueStore(run_copy)
+    payoff = aggregate(store.counted_results())
+    players = {p.name: p for p in store.players()}
+    assert data["finished"] is True and data["iteration"] == store.last_iteration()["iteration"]
+    assert {row["player"] for row in data["players"]} == set(players)
+    for row in data["players"]:
+        wins, games = player_record(payoff, players[row["player"]].side, players[row["player"]].id)
+        assert (row["wins"], row["games"]) == (wins, games)
+    store.close()
+    weights = {side: sum(p["nash_weight"] for p in data["meta_game"]["players"] if p["side"] == side) for side in ("attacker", "team")}
+    assert weights == pytest.approx({"attacker": 1.0, "team": 1.0})
+
+    assert evaluate.main(["--run-dir", str(run_copy), "--episodes", "4", "--workers", "0", "--json"]) == 0
+    evaluated = json.loads(capsys.readouterr().out)
+    recorded = query(run_copy, "SELECT attacker, team, SUM(count) FROM matches WHERE source = 'evaluation' "
+                               "AND outcome IN ('captured', 'timeout') GROUP BY attacker, team")
+    by_id = {p.id: p.name for p in players.values()}
+    wins = {(by_id[a], by_id[t]): n for a, t, n in recorded}
+    for pair in evaluated["pairs"]:
+        assert pair["games"] == 4 == sum(pair["outcomes"].values())
+        assert pair["attacker_wins"] == wins.get((pair["attacker"], pair["team"]), 0)
