@@ -44,7 +44,7 @@ from league.progress import IterationTiming, ProgressReporter
 from league.run_dir import record_config, write_manifest
 from league.schedule import PhaseState, schedule_of
 from league.stop import StopRequests
-from league.store import LeagueStore
+from league.store import DB_NAME, LeagueStore
 
 CHECKPOINTS_KEPT = 2
 GAMES_FILE = "games_in_flight.pkl"  # in a checkpoint directory: the env runners' games in flight
@@ -296,6 +296,8 @@ class Coordinator:
             st.rng = self.rng.bit_generator.state
             if checkpoint is not None:
                 self.store.record_checkpoint(st.iteration, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(st)))
+        if checkpoint is not None:
+            self.store.backup(checkpoint / DB_NAME)  # what `--resume` restores a damaged league.db from
 
     def report_runner_health(self) -> None:
         """Say when remote env runners are lost (a node died) or come back."""
@@ -366,6 +368,7 @@ class Coordinator:
                 self.store.add_player(0, **columns)
             self.state.rng = self.rng.bit_generator.state
             self.store.record_checkpoint(0, str(checkpoint.relative_to(self.run_dir)), json.dumps(asdict(self.state)))
+        self.store.backup(checkpoint / DB_NAME)
 
     # ------------------------------------------------------------ snapshots, checkpoints
     @staticmethod

@@ -46,6 +46,7 @@ from league.run_dir import (
     is_disk_full,
     lock_run,
     open_run,
+    restore_damaged_database,
     usable_checkpoints,
 )
 from league.stop import StopRequests, Stopped
@@ -149,6 +150,9 @@ def open_for_training(args: argparse.Namespace) -> tuple[RunConfig, Path, League
         check_run_dir(run_dir)
         lock = lock_run(run_dir)  # before reading: another process may be rolling the database back
         try:
+            restored = restore_damaged_database(run_dir)
+            if restored:
+                print(restored, file=sys.stderr)
             run, store = open_run(run_dir)
             check_config_unchanged(run_dir, run, store)
             intact_checkpoints(run_dir, store)  # before Ray starts: fail fast

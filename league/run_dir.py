@@ -55,7 +55,34 @@ def open_store(run_dir: Path) -> LeagueStore:
     try:
         return LeagueStore(run_dir)
     except DamagedStoreError as err:
-        raise RunDirError(f"{err}: restore it from a backup, or start a new run") from err
+        raise RunDirError(
+            f"{err}: `python -m league.run --resume {run_dir}` restores it from the copy kept with its newest "
+            "checkpoint, or start a new run"
+        ) from err
+
+
+def restore_damaged_database(run_dir: Path) -> str | None:
+    """Replace a damaged ``league.db`` by the newest intact copy kept in a checkpoint directory
+    (``Coordinator`` writes one with every checkpoint it commits). Returns the line saying so,
+    or None when the database was intact (or no intact copy exists: ``open_store`` then says what is wrong)."""
+    path = Path(run_dir) / DB_NAME
+    try:
+        LeagueStore(run_dir).close()
+        return None
+    except DamagedStoreError as err:
+        damage = err
+    for backup in sorted(Path(run_dir).glob(f"checkpoints/iter_*/{DB_NAME}"), reverse=True):
+        try:
+            LeagueStore(backup.parent).close()
+        except (DamagedStoreError, OSError):
+            continue
+        for stale in (path.with_name(DB_NAME + "-wal"), path.with_name(DB_NAME + "-shm")):
+            stale.unlink(missing_ok=True)
+        partial = path.with_name(DB_NAME + ".restoring")
+        shutil.copyfile(backup, partial)
+        os.replace(partial, path)
+        return f"{damage}; restored it from {backup.relative_to(run_dir)}, the copy kept with that checkpoint"
+    return None
 
 
 def read_config(run_dir: Path) -> RunConfig:

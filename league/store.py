@@ -186,6 +186,17 @@ class LeagueStore:
             what = "empty" if not tables else "not a league database"
             raise DamagedStoreError(f"{self.path} is {what} (no table {', '.join(missing)})")
 
+    def backup(self, path: Path) -> None:
+        """A consistent copy of the whole database at ``path`` (SQLite's online backup), in one rename."""
+        partial = Path(path).with_name(Path(path).name + ".partial")
+        partial.unlink(missing_ok=True)
+        target = sqlite3.connect(partial)
+        try:
+            self.db.backup(target)
+        finally:
+            target.close()
+        os.replace(partial, path)
+
     def integrity_check(self) -> str:
         """SQLite's full ``PRAGMA integrity_check``: ``"ok"``, or the problems found, one per line."""
         return "\n".join(row[0] for row in self.db.execute("PRAGMA integrity_check"))
