@@ -360,6 +360,7 @@ def plot_curves(groups: list[list[Curve]], terminal_reward: float, title: str, o
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import EngFormatter, MaxNLocator
 
     rows, row_inches = len(groups), 3.4
     fig, axes = plt.subplots(rows, 2, figsize=(15, row_inches * rows), squeeze=False)
@@ -385,6 +386,9 @@ def plot_curves(groups: list[list[Curve]], terminal_reward: float, title: str, o
                     )
             _reference_lines(ax, [(kind, name, float(np.mean(v))) for (kind, name), v in sorted(refs.items())])
             ax.set_xlabel(f"env steps of {learner.name}")
+            # At most 5 ticks, as "200k" and "1.2M": full env-step counts ran together.
+            ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
+            ax.xaxis.set_major_formatter(EngFormatter(sep=""))
             ax.set_title(f"{learner.name} vs {opponent.name}: {quantity.title}", fontsize=9)
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="best")

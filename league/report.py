@@ -95,6 +95,7 @@ class ReportData:
     exploitability: list[Exploitability] = field(default_factory=list)  # best responses of league.exploit
     generations: list[GenerationLine] = field(default_factory=list)  # snapshots against the scripted panel
     missing_generations: list[str] = field(default_factory=list)  # points of those lines not evaluated
+    evaluated_iteration: int | None = None  # the run's final evaluation, whose games refit that iteration's ratings
 
 
 # ---------------------------------------------------------------- data
@@ -226,6 +227,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         meta=meta_game(attackers, teams, payoff),
         exploitability=exploitability(players, store.newest_evaluation_rows()),
         generations=generations, missing_generations=missing_generations,
+        evaluated_iteration=store.get_meta("evaluated_iteration"),
     )
 
 
@@ -298,7 +300,8 @@ def payoff_grid(data: ReportData) -> np.ndarray:
 def heat_map(data: ReportData, out: Path) -> None:
     grid = payoff_grid(data)
     rows, columns = grid.shape
-    fig, ax = plt.subplots(figsize=(2.6 + 0.85 * columns, 1.6 + 0.3 * rows))
+    # Room for the labels, the colour bar and the title however few players there are.
+    fig, ax = plt.subplots(figsize=(max(6.5, 3.4 + 0.85 * columns), max(3.6, 2.2 + 0.35 * rows)), layout="constrained")
     cmap = plt.get_cmap("RdBu_r")  # red: the attacker wins, blue: the team wins, white: even
     image = ax.imshow(grid, cmap=cmap, vmin=0, vmax=1, aspect="auto")
     ax.set_xticks(range(columns), [t.name for t in data.teams], rotation=35, ha="right", fontsize=8)
@@ -312,7 +315,6 @@ def heat_map(data: ReportData, out: Path) -> None:
                         color="white" if dark else "black")
     fig.colorbar(image, label="attacker win rate", fraction=0.05)
     ax.set_title("attacker win rate, newest evaluation of each pair")
-    fig.tight_layout()
     fig.savefig(out, dpi=DPI)
     plt.close(fig)
 
@@ -371,10 +373,14 @@ def ratings_plot(data: ReportData, out: Path) -> None:
             if player.kind in POOL_KINDS:
                 ax.plot(*broken(x, y), color="grey", lw=0.6, alpha=0.6)
                 continue
-            style = {"lw": 1.8} if player.trains else {"lw": 1.2, "ls": "--"}
+            # Markers too: a player rated once (a scripted player met only in the final evaluation) is one point.
+            style = {"lw": 1.8, "marker": "o", "ms": 2.5} if player.trains else {"lw": 1.2, "ls": "--", "marker": "o", "ms": 2.5}
             ax.plot(*broken(x, y), label=f"{player.name} ({player.kind})", color=colours(named % 10), **style)
             named += 1
         ax.plot([], [], color="grey", lw=0.6, label="snapshots (table below)")
+        if data.evaluated_iteration is not None:
+            ax.axvline(data.evaluated_iteration, color="black", lw=0.8, ls=":",
+                       label="final evaluation: ratings refitted with its games")
         ax.set_title(f"{side} side")
         ax.set_xlabel("iteration")
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)

@@ -139,3 +139,9 @@ def test_status_of_a_finished_run_says_finished_with_its_average_speed(tiny_run)
         store.close()
     assert line.startswith(f"finished: iteration {last['iteration']}, {last['env_steps']} env steps")
     assert line.endswith(f"{last['env_steps'] / seconds:.0f} env steps/s on average")
+
+
+def test_the_payoff_heat_map_has_room_for_its_colour_bar_and_title(report_dir):
+    # It was 580 x 260 px for a small league, the colour bar's label running into the title.
+    width, height = Image.open(report_dir / "payoff.png").size
+    assert width >= 6.5 * 100 * 0.99 and height >= 3.6 * 100 * 0.99, (width, height)
