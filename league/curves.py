@@ -246,7 +246,7 @@ class LearningCurves:
             else f"team return {stats.team_return(self.run.game.terminal_reward):.2f}"
         )
         return (
-            f"curve: {learner.name} at {env_steps:,} env steps vs {opponent.name}: wins {stats.win_rate(learner.side):.3f} "
+            f"curve: {learner.name} at {env_steps:,} env steps of its own vs {opponent.name}: wins {stats.win_rate(learner.side):.3f} "
             f"[{low:.3f}, {high:.3f}] of {stats.games}, {own}"
         )
 

@@ -79,7 +79,7 @@ class ProgressReporter:
         evaluated = f", eval {timing.evaluation:.1f} s" if evaluation or timing.evaluation >= 0.05 else ""  # or curves
         self.message(
             f"phase {phase.index + 1}/{self.total_phases} {side:8s} | iter {iteration:4d} | "
-            f"{env_steps:8d} env steps | {steps_per_second:6.0f} steps/s | "
+            f"{env_steps:8d} env steps in all | {steps_per_second:6.0f} steps/s | "
             f"sample {timing.sampling:.1f} s, learn {timing.learning:.1f} s{evaluated} | "
             f"{side} win rate {phase_rate:.2f} over {phase.episodes} ep | league {league_size}"
             + (f" | snapshot {', '.join(snapshots)}" if snapshots else "")

@@ -61,7 +61,7 @@ def test_progress_log_is_one_plain_line_per_iteration_under_its_own_phase(tiny_r
         phases = dict(db.execute("SELECT iteration, phase FROM iterations"))
     assert len(progress) == len(phases)
     pattern = re.compile(
-        r"^\d\d:\d\d:\d\d phase (\d)/2 (attacker|team) +\| iter +(\d+) \| +\d+ env steps \| +\d+ steps/s \| "
+        r"^\d\d:\d\d:\d\d phase (\d)/2 (attacker|team) +\| iter +(\d+) \| +\d+ env steps in all \| +\d+ steps/s \| "
         r"sample \d+\.\d s, learn \d+\.\d s(, eval \d+\.\d s)? \| (attacker|team) win rate (\d\.\d\d) over (\d+) ep"
     )
     for line in progress:
