@@ -8,7 +8,7 @@
   (phases shaded; a line breaks between a learner's phases), and 3D trajectories of a won and a lost game
   for each side (the analogues of the paper's Fig. 3 and Fig. 4), and the learning curves
   (``league.curves``: win rate and return over env steps, with reference lines).
-* ``index.html``: the same content (without the learning curves) in one self-contained file (plotly's JavaScript
+* ``index.html``: the same content in one self-contained file (plotly's JavaScript
   inside, so it opens offline), with the trajectories as 3D scenes to rotate, zoom and
   step through (``league.report_html``).
 
@@ -37,7 +37,7 @@ from envs.match import play
 from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
-from league.curves import plot_run
+from league.curves import Curve, plot_run, read_curves
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability
 from league.generations import GenerationLine, generation_lines, generations_plot
 from league.head_to_head import agents_of, evaluate_pairs
@@ -96,6 +96,7 @@ class ReportData:
     generations: list[GenerationLine] = field(default_factory=list)  # snapshots against the scripted panel
     missing_generations: list[str] = field(default_factory=list)  # points of those lines not evaluated
     evaluated_iteration: int | None = None  # the run's final evaluation, whose games refit that iteration's ratings
+    curves: list[Curve] = field(default_factory=list)  # learners on the fixed games as they trained (league.curves)
 
 
 # ---------------------------------------------------------------- data
@@ -228,6 +229,7 @@ def gather(store: LeagueStore, run: RunConfig, run_dir: Path) -> ReportData:
         exploitability=exploitability(players, store.newest_evaluation_rows()),
         generations=generations, missing_generations=missing_generations,
         evaluated_iteration=store.get_meta("evaluated_iteration"),
+        curves=read_curves(store),
     )
 
 

@@ -17,11 +17,13 @@ from plotly.offline import get_plotlyjs
 
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.render import COLOURS
+from league.curves import quantities, reference_colour
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
 from league.generations import generations_figure
 from league.nash import META_GAME_NOTE, MIXTURE_HEADER
 from league.players import POOL_KINDS
 from league.report import (
+    CURVES_NOTE,
     GENERATIONS_NOTE,
     NO_EXPLOITABILITY,
     NO_META_GAME,
@@ -196,6 +198,29 @@ def trajectory_figure(episode: Episode, game: "GameConfig") -> go.Figure:
     return fig
 
 
+def curves_figure(data: "ReportData") -> go.Figure:
+    """The learning curves of ``curves.png``: a row per (learner, opponent), a panel per quantity,
+    the scripted players and the untrained version 0 as dashed and dotted lines."""
+    from plotly.subplots import make_subplots
+
+    curves, terminal_reward = data.curves, data.run.game.terminal_reward
+    titles = [f"{c.learner.name} vs {c.opponent.name}: {q.title}" for c in curves for q in quantities(c.learner)]
+    fig = make_subplots(rows=len(curves), cols=2, subplot_titles=titles, vertical_spacing=0.3 / max(1, len(curves)))
+    for row, curve in enumerate(curves, start=1):
+        for col, quantity in enumerate(quantities(curve.learner), start=1):
+            y = [quantity.value(s, curve.learner, terminal_reward) for s in curve.stats]
+            fig.add_trace(go.Scatter(x=curve.env_steps, y=y, mode="lines+markers", name=curve.learner.name,
+                                     line={"color": "#1f77b4"}, showlegend=False), row=row, col=col)
+            for kind, name, stats in curve.references:
+                label = "untrained (version 0)" if kind == "untrained" else name
+                fig.add_hline(y=quantity.value(stats, curve.learner, terminal_reward), row=row, col=col,
+                              line={"color": reference_colour(kind, name), "dash": "dot" if kind == "untrained" else "dash",
+                                    "width": 1}, annotation_text=label, annotation_font_size=9)
+            fig.update_xaxes(title_text=f"env steps of {curve.learner.name}", row=row, col=col)
+    fig.update_layout(height=320 * max(1, len(curves)), margin={"t": 40, "b": 40})
+    return fig
+
+
 def meta_game_html(data: "ReportData") -> list[str]:
     if data.meta is None:
         return [f"<p>No meta-game: {html.escape(NO_META_GAME)}</p>"]
@@ -232,6 +257,10 @@ def write(data: "ReportData", out: Path) -> None:
         "<h2>Episode returns</h2>",
         figure_div(line_figure(data.returns, data.phases, "mean episode return", "episode returns of the learners"),
                    "returns"),
+        "<h2>Learning curves</h2>",
+        *([f"<p>{html.escape(CURVES_NOTE)}</p>", figure_div(curves_figure(data), "learning-curves")] if data.curves else
+          ["<p class='note'>No learning curves recorded (<code>evaluation.curve_every_env_steps</code> is 0, "
+           "or no learner reached it).</p>"]),
         "<h2>Trajectories</h2>",
         "<p class='note'>Drag to rotate, scroll to zoom; the slider and the play button step through the game.</p>",
         "<div class='scenes'>",

@@ -145,3 +145,17 @@ def test_the_payoff_heat_map_has_room_for_its_colour_bar_and_title(report_dir):
     # It was 580 x 260 px for a small league, the colour bar's label running into the title.
     width, height = Image.open(report_dir / "payoff.png").size
     assert width >= 6.5 * 100 * 0.99 and height >= 3.6 * 100 * 0.99, (width, height)
+
+
+def test_the_report_page_has_the_learning_curves_of_report_md(tiny_run, report_dir):
+    from league.curves import read_curves
+
+    store = LeagueStore(tiny_run)
+    curves = read_curves(store)
+    store.close()
+    assert curves  # the tiny run records curves
+    page = (report_dir / "index.html").read_text()
+    assert 'id="learning-curves"' in page
+    for curve in curves:
+        assert f"{curve.learner.name} vs {curve.opponent.name}: win rate" in page
+    assert "learning curves" in (report_dir / "report.md").read_text().lower()
