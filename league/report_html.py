@@ -270,9 +270,14 @@ def write(data: "ReportData", out: Path) -> None:
                                           f"trajectory-{episode.side}-{episode.label}") + "</div>")
     parts.append("</div>")
     parts += [f"<p class='note'>{html.escape(text)}</p>" for text in data.missing_episodes]
+    write_page(f"Report: {data.run.name}", parts, out)
+
+
+def write_page(title: str, parts: list[str], out: Path) -> None:
+    """One self-contained page (plotly's JavaScript inside) at ``out``, through a temporary file."""
     page = (
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-        f"<title>Report: {html.escape(data.run.name)}</title><style>{PAGE_STYLE}</style>"
+        f"<title>{html.escape(title)}</title><style>{PAGE_STYLE}</style>"
         f"<script type='text/javascript'>{get_plotlyjs()}</script></head><body>" + "\n".join(parts) + "</body></html>"
     )
     partial = out.with_name(out.name + ".partial")

@@ -111,7 +111,7 @@ def test_report_page_opens_in_a_browser_without_errors_and_draws_the_3d_scene(re
     assert check.fetched == []  # opens offline: nothing but the file itself is requested
     scenes = len(list(report_dir.glob("trajectory_*.png")))
     assert check.scenes == scenes > 0
-    assert check.figures == scenes + 5  # payoff, generations, ratings, win rates, returns
+    assert check.figures == scenes + 6  # payoff, generations, ratings, win rates, returns, learning curves
     (tmp_path / "scene.png").write_bytes(check.screenshot)
     # The scene is drawn (WebGL), not only its frame: the agents' paths are in the screenshot.
     for agent in (ATTACKER, DEFENDER):
@@ -159,3 +159,19 @@ def test_the_report_page_has_the_learning_curves_of_report_md(tiny_run, report_d
     for curve in curves:
         assert f"{curve.learner.name} vs {curve.opponent.name}: win rate" in page
     assert "learning curves" in (report_dir / "report.md").read_text().lower()
+
+
+def test_replay_writes_a_page_and_a_png_of_one_fixed_game(tiny_run, tmp_path):
+    from league.replay import main as replay_main
+
+    out = tmp_path / "replay.html"
+    args = ["--run-dir", str(tiny_run), "--attacker", "attacker-m2-v1", "--team", "scripted-avoid_attacker+pure_pursuit"]
+    assert replay_main([*args, "--game", "2", "--out", str(out)]) == 0
+    assert out.exists() and Image.open(out.with_suffix(".png")).size[0] > 300
+    assert 'id="replay"' in out.read_text() and "(game 2)" in out.read_text()
+    assert replay_main([*args[:4], "--team", "no-such-team"]) == 2
+    chromium = find_chromium()
+    if chromium is None:
+        pytest.skip("no Chromium installed (Debian: apt-get install chromium): the browser check cannot run")
+    check = check_page(out, chromium)
+    assert check.errors == [] and check.fetched == [] and check.scenes == 1
