@@ -16,7 +16,6 @@ import argparse
 import os
 import random
 import signal
-import sqlite3
 import subprocess
 import sys
 import tempfile
@@ -24,13 +23,18 @@ import time
 from pathlib import Path
 
 from league.run_dir import run_differences
+from league.store import DamagedStoreError, LeagueStore
 
 
 def iterations(run_dir: Path) -> int:
-    if not (run_dir / "league.db").exists():
+    try:
+        store = LeagueStore(run_dir)
+    except (FileNotFoundError, DamagedStoreError):  # not there yet
         return 0
-    with sqlite3.connect(run_dir / "league.db", timeout=30) as db:
-        return db.execute("SELECT COUNT(*) FROM iterations").fetchone()[0]
+    try:
+        return store.iteration_count()
+    finally:
+        store.close()
 
 
 def start(args: list[str], log: Path) -> subprocess.Popen:
