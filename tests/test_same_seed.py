@@ -3,6 +3,7 @@ resumed, end with the same league database (but its wall-clock columns) and the 
 
 import os
 import random
+import shutil
 import signal
 import sqlite3
 import subprocess
@@ -23,6 +24,7 @@ TINY_SMOKE = [
     "--set", "league.phase_env_steps=3072", "--set", "league.selfplay_phases=2",
     "--set", "evaluation.episodes=20", "--set", "evaluation.curve_episodes=20",
     "--set", "evaluation.curve_every_env_steps=1024",
+    "--set", "evaluation.workers=0",  # the same numbers as on workers (tests/test_head_to_head.py), without their start-up
 ]
 RUN_TIMEOUT = 600
 
@@ -81,3 +83,14 @@ def test_a_run_killed_twice_and_resumed_is_the_run_never_killed(whole, tmp_path)
         proc = league("--resume", str(killed))
     finish(proc)
     assert run_differences(whole, killed) == []
+
+
+def test_resume_restores_a_truncated_database_and_ends_as_the_run_never_damaged(whole, tmp_path):
+    damaged = tmp_path / "damaged"
+    shutil.copytree(whole, damaged)
+    with open(damaged / "league.db", "r+b") as db:
+        db.truncate(4096)
+    out = finish(league("--resume", str(damaged)))
+    said = [line for line in out.splitlines() if "restored it from" in line]
+    assert len(said) == 1 and "league.db is damaged" in said[0] and "checkpoints/iter_" in said[0], out[-2000:]
+    assert run_differences(whole, damaged) == []
