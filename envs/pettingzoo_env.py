@@ -92,9 +92,13 @@ class TargetDefenseEnv(ParallelEnv):
     Any field of ``envs.config.GameConfig`` as a keyword, or ``config=GameConfig(...)``.
     """
 
-    metadata = {"name": "target_defense_v0", "render_modes": [], "is_parallelizable": True}
+    metadata = {"name": "target_defense_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
 
-    def __init__(self, config: GameConfig | None = None, **overrides: Any):
+    def __init__(self, config: GameConfig | None = None, render_mode: str | None = None, **overrides: Any):
+        """``render_mode="rgb_array"``: ``render()`` returns the game so far as the picture of
+        ``python -m envs.render`` (an RGB array); ``None``: nothing is drawn or recorded."""
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode {render_mode!r} is not supported; choose one of {self.metadata['render_modes']} or None")
         self.config = config or GameConfig(**overrides)
         self.game = SingleGame(self.config)
         self.possible_agents = list(AGENTS)
@@ -102,7 +106,8 @@ class TargetDefenseEnv(ParallelEnv):
         self.observation_spaces = self.game.observation_spaces
         self.action_spaces = self.game.action_spaces
         self.state_space = state_space()
-        self.render_mode = None
+        self.render_mode = render_mode
+        self._path: list[np.ndarray] = []  # positions (3, 3) after each step, for `render`
 
     def observation_space(self, agent: str):
         return self.observation_spaces[agent]
@@ -120,6 +125,8 @@ class TargetDefenseEnv(ParallelEnv):
                 raise ValueError(f"options['positions'] must be finite real numbers, got {positions.tolist()}")
         observations = self.game.reset(seed, positions)
         self.agents = list(AGENTS)
+        if self.render_mode:
+            self._path = [self.game.core.positions[0].copy()]
         return observations
 
     def step(self, actions: dict[str, np.ndarray]):
@@ -129,6 +136,8 @@ class TargetDefenseEnv(ParallelEnv):
             if np.iscomplexobj(action):
                 raise ValueError(f"action of {agent!r} is complex: {action}; actions are real (yaw, pitch) turns")
         obs, rewards, done, infos = self.game.step(actions)
+        if self.render_mode:
+            self._path.append(self.game.core.positions[0].copy())
         terminations = {agent: done for agent in self.agents}
         truncations = {agent: False for agent in self.agents}
         if done:
@@ -138,8 +147,17 @@ class TargetDefenseEnv(ParallelEnv):
     def state(self) -> np.ndarray:
         return self.game.state()
 
-    def render(self) -> None:
-        """Rendering is offline: see ``python -m envs.render``."""
+    def render(self) -> np.ndarray | None:
+        """The game since the last reset as an RGB array ``(height, width, 3)`` (``render_mode="rgb_array"``;
+        the drawing of ``envs.render``), or None without a render mode."""
+        if not self.render_mode:
+            return None
+        if not self._path:
+            raise RuntimeError("nothing to render: call reset() first")
+        from envs.agents import Outcome
+        from envs.render import episode_image
+
+        return episode_image(np.stack(self._path), Outcome(int(self.game.core.outcome[0])), self.config, "target defense")
 
     def close(self) -> None:
         pass

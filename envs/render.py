@@ -26,6 +26,23 @@ COLOURS = {ATTACKER: "tab:red", TARGETER: "tab:blue", DEFENDER: "tab:green"}
 
 def plot_episode(trajectory: np.ndarray, outcome: Outcome, config: GameConfig, title: str, out: Path) -> None:
     """Save the paths ``(steps + 1, 3, 3)`` with starts, terminal sphere and the ending event."""
+    fig = episode_figure(trajectory, outcome, config, title)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def episode_image(trajectory: np.ndarray, outcome: Outcome, config: GameConfig, title: str) -> np.ndarray:
+    """The picture of ``plot_episode`` as an RGB array ``(height, width, 3)`` of uint8 (PettingZoo's ``rgb_array``)."""
+    fig = episode_figure(trajectory, outcome, config, title)
+    fig.set_dpi(110)
+    fig.canvas.draw()
+    image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    plt.close(fig)
+    return image
+
+
+def episode_figure(trajectory: np.ndarray, outcome: Outcome, config: GameConfig, title: str):
+    """The matplotlib figure of ``plot_episode``."""
     fig = plt.figure(figsize=(7, 6))
     ax = fig.add_subplot(projection="3d")
     for agent in (ATTACKER, TARGETER, DEFENDER):
@@ -52,11 +69,11 @@ def plot_episode(trajectory: np.ndarray, outcome: Outcome, config: GameConfig, t
     ax.set_xlabel("x")
     ax.set_ylabel("y")
     ax.set_zlabel("z")
-    ax.set_title(f"{title}\noutcome: {outcome.label} after {len(trajectory) - 1} steps")
+    ax.set_title(f"{title}\noutcome: {outcome.label} after {len(trajectory) - 1} steps" if outcome != Outcome.RUNNING
+                 else f"{title}\nafter {len(trajectory) - 1} steps")
     ax.legend(loc="upper left", fontsize=8)
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    return fig
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -147,3 +147,24 @@ def test_step_after_the_end_needs_a_reset():
     assert all(terminations.values()) and infos["targeter"]["outcome"] == "terminal_reached"
     with pytest.raises(RuntimeError, match="reset"):
         env.step({agent: np.zeros(2) for agent in AGENTS})
+
+
+def test_rgb_array_render_draws_the_game_so_far():
+    from envs.match import scripted_players
+
+    env = parallel_env(render_mode="rgb_array")
+    players = scripted_players("lead_intercept", "avoid_attacker", "pure_pursuit")
+    env.reset(seed=0)
+    first = env.render()
+    for _ in range(15):
+        if not env.agents:
+            break
+        core = env.game.core
+        env.step({agent: players[agent].act(core)[0] for agent in env.agents})
+    later = env.render()
+    assert first.dtype == np.uint8 and first.ndim == 3 and first.shape[2] == 3 and first.shape == later.shape
+    assert len(np.unique(later.reshape(-1, 3), axis=0)) > 20  # a picture, not a blank canvas
+    assert not np.array_equal(first, later)  # the paths grew
+    assert parallel_env().render() is None
+    with pytest.raises(ValueError, match="render_mode"):
+        parallel_env(render_mode="human")
