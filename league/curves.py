@@ -350,6 +350,15 @@ def _win_band(ax, x: list[int], stats: list[GameStats], side: str, colour: str) 
 
 
 def plot_curves(groups: list[list[Curve]], terminal_reward: float, title: str, out: Path) -> None:
+    """``curves_figure`` saved to ``out``."""
+    import matplotlib.pyplot as plt
+
+    fig = curves_figure(groups, terminal_reward, title)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def curves_figure(groups: list[list[Curve]], terminal_reward: float, title: str):
     """One row per (learner, opponent) group, one panel per quantity.
 
     A group holds the same curve of several runs (seeds): one thin line each and their
@@ -397,8 +406,7 @@ def plot_curves(groups: list[list[Curve]], terminal_reward: float, title: str, o
     # Room on the right of each panel for the reference labels (tight_layout ignores them).
     height = row_inches * rows
     fig.subplots_adjust(left=0.05, right=0.83, wspace=0.55, hspace=0.55, top=1 - 0.8 / height, bottom=0.5 / height)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    return fig
 
 
 def mean_curve(lines: list[tuple[list[int], list[float]]]) -> tuple[np.ndarray, np.ndarray]:

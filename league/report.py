@@ -362,6 +362,12 @@ def line_plot(series: Series, phases: list[Phase], ylabel: str, title: str, out:
 
 
 def ratings_plot(data: ReportData, out: Path) -> None:
+    fig = ratings_figure(data)
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+
+
+def ratings_figure(data: ReportData):
     """One panel per side: learners, exploiters and scripted players named, snapshots as thin grey lines (see the table)."""
     fig, axes = plt.subplots(1, 2, figsize=(12, 5.5), sharey=True)
     colours = plt.get_cmap("tab10")
@@ -389,8 +395,7 @@ def ratings_plot(data: ReportData, out: Path) -> None:
     axes[0].set_ylabel("Elo rating")
     fig.suptitle("ratings over training (fitted to every result so far)")
     fig.tight_layout()
-    fig.savefig(out, dpi=DPI)
-    plt.close(fig)
+    return fig
 
 
 # ---------------------------------------------------------------- the report

@@ -175,3 +175,34 @@ def test_replay_writes_a_page_and_a_png_of_one_fixed_game(tiny_run, tmp_path):
         pytest.skip("no Chromium installed (Debian: apt-get install chromium): the browser check cannot run")
     check = check_page(out, chromium)
     assert check.errors == [] and check.fetched == [] and check.scenes == 1
+
+
+def test_plots_label_what_they_draw(tiny_run):
+    # curves.png: env-step ticks ran together ("1000001200001400001600001800000"); ratings.png:
+    # a player rated once had a legend entry and nothing drawn, and the final refit was unexplained.
+    from league.config import saved_run_config
+    from league.curves import curves_figure, read_curves
+    from league.report import gather, ratings_figure
+
+    store = LeagueStore(tiny_run)
+    try:
+        curves = read_curves(store)
+        data = gather(store, saved_run_config(tiny_run), tiny_run)
+    finally:
+        store.close()
+    fig = curves_figure([[c] for c in curves], 0.0, "curves")
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        labels = [t for t in ax.get_xticklabels() if t.get_text()]
+        assert 2 <= len(labels) <= 6 and all(len(t.get_text()) <= 5 for t in labels), [t.get_text() for t in labels]
+        boxes = [t.get_window_extent(renderer) for t in labels]
+        assert all(a.x1 <= b.x0 for a, b in zip(boxes, boxes[1:]))  # side by side, none over the next
+    fig = ratings_figure(data)
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        for handle, text in zip(legend.legend_handles, legend.get_texts()):
+            if text.get_text().startswith(("snapshots", "final evaluation")):
+                continue  # a key for the grey lines, and the refit's vertical line
+            assert handle.get_marker() not in (None, "None", ""), text.get_text()  # one rating is one visible point
+        assert any("final evaluation" in t.get_text() for t in legend.get_texts())
