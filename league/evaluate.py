@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 from typing import Any
 from pathlib import Path
@@ -127,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         if not ray.is_initialized():
             ray.init(  # a private instance, like league.run's
                 address="local", num_cpus=max(1, int(workers * run.evaluation.cpus_per_worker + 0.999)),
-                include_dashboard=False,
+                include_dashboard=False, logging_level=logging.ERROR, log_to_driver=False,  # no banners
             )
             started_ray = True
     try:

@@ -154,3 +154,17 @@ def test_remote_env_runners_holding_every_cpu_do_not_hang_the_final_evaluation(t
     ))
     assert "evaluation of" in out and "evaluating in the driver" not in out
     assert query(run_dir, "SELECT COUNT(*) FROM matches WHERE source = 'evaluation'")[0][0] > 0
+
+
+def test_evaluate_on_workers_prints_no_ray_banners(tiny_run, tmp_path):
+    import shutil
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(tiny_run, run_dir)
+    proc = subprocess.run(
+        [sys.executable, "-m", "league.evaluate", "--run-dir", str(run_dir), "--workers", "2", "--episodes", "4"],
+        capture_output=True, text=True, timeout=RUN_TIMEOUT,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "fixed games of scenario set" in proc.stdout
+    assert "Token authentication" not in proc.stderr and "Started a local Ray instance" not in proc.stderr, proc.stderr
