@@ -481,3 +481,9 @@ def test_status_and_evaluate_give_their_numbers_as_json(run_copy, capsys):
         assert pair["games"] == 4 == sum(pair["outcomes"].values())
         assert pair["attacker_wins"] == wins.get((pair["attacker"], pair["team"]), 0)
 
+
+
+def test_set_is_explained_in_the_help(capsys):
+    with pytest.raises(SystemExit):
+        run.parse_args(["--help"])
+    assert "override a config key" in " ".join(capsys.readouterr().out.split())
