@@ -51,18 +51,23 @@ def iterations(run_dir: Path) -> int:
 
 
 @pytest.fixture(scope="module")
-def whole(tmp_path_factory) -> Path:
-    """One uninterrupted run of the tiny smoke league."""
-    run_dir = tmp_path_factory.mktemp("same_seed") / "whole"
-    finish(league(*TINY_SMOKE, "--run-dir", str(run_dir)))
-    assert iterations(run_dir) >= 4
-    return run_dir
+def runs(tmp_path_factory) -> tuple[Path, Path]:
+    """Two uninterrupted runs of the tiny smoke league, side by side (each has a process and a Ray of its own)."""
+    base = tmp_path_factory.mktemp("same_seed")
+    procs = [league(*TINY_SMOKE, "--run-dir", str(base / name)) for name in ("whole", "second")]
+    for proc in procs:
+        finish(proc)
+    assert iterations(base / "whole") >= 4
+    return base / "whole", base / "second"
 
 
-def test_two_runs_with_one_seed_are_one_run(whole, tmp_path):
-    second = tmp_path / "second"
-    finish(league(*TINY_SMOKE, "--run-dir", str(second)))
-    assert run_differences(whole, second) == []
+@pytest.fixture(scope="module")
+def whole(runs) -> Path:
+    return runs[0]
+
+
+def test_two_runs_with_one_seed_are_one_run(runs):
+    assert run_differences(*runs) == []
 
 
 def test_a_run_killed_twice_and_resumed_is_the_run_never_killed(whole, tmp_path):
@@ -81,8 +86,9 @@ def test_a_run_killed_twice_and_resumed_is_the_run_never_killed(whole, tmp_path)
         proc.wait(timeout=60)
         assert iterations(killed) < total, "the run ended before it was killed"
         proc = league("--resume", str(killed))
-    finish(proc)
+    assert "resumed at iteration" in finish(proc)
     assert run_differences(whole, killed) == []
+    assert not list((killed / "checkpoints").glob("*.partial"))
 
 
 def test_resume_restores_a_truncated_database_and_ends_as_the_run_never_damaged(whole, tmp_path):
