@@ -633,22 +633,22 @@ def games_in_flight(algo: Algorithm) -> dict[int, bytes]:
 
 def restart_games(algo: Algorithm) -> None:
     """Every fast or batched env runner drops its games in flight (``BatchedEnvRunner.restart_games``)."""
+    _on_batched_runners(algo, lambda runner: runner.restart_games())
 
-    def restart(runner: Any) -> None:
-        if isinstance(runner, BatchedEnvRunner):
-            runner.restart_games()
 
-    algo.env_runner_group.foreach_env_runner(restart, local_env_runner=True)
+def _on_batched_runners(algo: Algorithm, call: Any) -> None:
+    """``call(runner)`` on every fast or batched env runner, the driver's included."""
+    algo.env_runner_group.foreach_env_runner(
+        lambda runner: call(runner) if isinstance(runner, BatchedEnvRunner) else None, local_env_runner=True
+    )
 
 
 def restore_games(algo: Algorithm, states: dict[int, bytes]) -> None:
     """Hand each env runner its games in flight from ``games_in_flight`` (a runner without any starts anew)."""
 
-    def restore(runner: Any) -> None:
-        if isinstance(runner, BatchedEnvRunner) and runner.worker_index in states:
-            runner.restore_games(states[runner.worker_index])
-
-    algo.env_runner_group.foreach_env_runner(restore, local_env_runner=True)
+    _on_batched_runners(
+        algo, lambda runner: runner.restore_games(states[runner.worker_index]) if runner.worker_index in states else None
+    )
 
 
 def set_trainable(algo: Algorithm, module_ids: list[str]) -> None:
