@@ -62,3 +62,11 @@ def test_the_sql_scan_finds_sql_outside_the_store(tmp_path):
     assert [v.split(":")[0] for v in violations(root, SQL, {SQL_HOME})] == [
         "bench/learning.py", "envs/core.py", "league/report.py",
     ]
+
+
+def test_the_package_version_is_pyprojects():
+    import tomllib
+
+    import league
+
+    assert league.__version__ == tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
