@@ -40,8 +40,8 @@ import numpy as np
 from envs.scenarios import evaluation_scenarios
 from league.exploitability import exploitability
 from league.head_to_head import play_fixed_games, policies_of
-from league.payoff import wilson_interval
-from league.players import Player
+from league.core.payoff import wilson_interval
+from league.core.players import Player
 from league.reproduce import finished, train_run
 from league.run_dir import open_run
 

@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from league.payoff import aggregate, wilson_interval
+from league.core.payoff import aggregate, wilson_interval
 from league.store import LeagueStore
 
 

@@ -34,8 +34,8 @@ from envs.observations import split_policy_input
 from envs.scripted import ScriptedPlayer
 from league.config import RunConfig, load_config
 from league.head_to_head import LearnedAgent
-from league.payoff import attacker_won, wilson_interval
-from league.players import Player
+from league.core.payoff import attacker_won, wilson_interval
+from league.core.players import Player
 from league.rllib_bridge import MatchPlan, build_config, episode_outcomes, set_trainable
 
 from plain_ppo import train_plain  # bench/ beside this file

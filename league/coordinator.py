@@ -12,7 +12,7 @@ not count towards the phase's end (``count_played``), and it never enters a pool
 a frozen ``exploiter_snapshot``. It keeps its weights from phase to phase (no reset).
 
 Which side learns in a phase, against whom, and when the phase ends is the run's
-schedule (``league.schedule``: the paper's protocol, or self-play).
+schedule (``league.core.schedule``: the paper's protocol, or self-play).
 
 The run's lifecycle is here too: ``Coordinator.start`` (the first league members and
 checkpoint 0), ``Coordinator.resume`` (back to an intact checkpoint), ``train``, and
@@ -37,12 +37,12 @@ from league.config import RunConfig
 from league.curves import LearningCurves, Measurements
 from league.evaluate import method_table
 from league.head_to_head import EvaluationPool, PairEvaluation, evaluate_pairs, format_table
-from league.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
-from league.pfsp import pfsp_probabilities
-from league.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
+from league.core.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
+from league.core.pfsp import pfsp_probabilities
+from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
 from league.progress import IterationTiming, ProgressReporter
 from league.run_dir import record_config, write_manifest
-from league.schedule import PhaseState, schedule_of
+from league.core.schedule import PhaseState, schedule_of
 from league.stop import StopRequests
 from league.store import DB_NAME, LeagueStore
 

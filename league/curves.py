@@ -45,8 +45,8 @@ from envs.match import GameResults
 from envs.scripted import PLAYERS
 from league.config import RunConfig
 from league.head_to_head import evaluate_pair, load_module
-from league.payoff import wilson_interval
-from league.players import Player
+from league.core.payoff import wilson_interval
+from league.core.players import Player
 
 # Where a live learner's module is "loaded" from: it comes from the algorithm, not the disk.
 LIVE_MODULES = "live-learners"

@@ -33,7 +33,7 @@ from torch import nn
 
 from envs.observations import split_policy_input
 from envs.single import action_space, observation_space
-from league.players import POOL_KINDS, Player
+from league.core.players import POOL_KINDS, Player
 from league.run_dir import RunDirError, open_run
 from league.store import LeagueStore
 

@@ -20,8 +20,8 @@ import matplotlib.pyplot as plt
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from league.payoff import wilson_interval
-from league.players import Player
+from league.core.payoff import wilson_interval
+from league.core.players import Player
 
 SIDES = ("attacker", "team")
 PANEL_TITLES = {"attacker": "attacker snapshots vs the scripted teams", "team": "team snapshots vs the scripted attackers"}

@@ -28,8 +28,8 @@ from envs.observations import policy_input
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import ScriptedPlayer
 from envs.vector_env import TargetDefenseVectorEnv
-from league.payoff import wilson_interval
-from league.players import Player
+from league.core.payoff import wilson_interval
+from league.core.players import Player
 from league.rollout import ModuleAct, Policy, Rollout, ScriptedOnState
 
 WORKER_START_S = 60.0  # how long evaluation workers may take to start before the driver plays their games

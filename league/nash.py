@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from league.payoff import ATTACKER_WINS, aggregate
-from league.players import POOL_KINDS, Player
+from league.core.payoff import ATTACKER_WINS, aggregate
+from league.core.players import POOL_KINDS, Player
 
 # HiGHS's default primal and dual feasibility tolerances are 1e-7; a weight below ten
 # times that is solver noise around zero, not part of the mixture.

@@ -23,7 +23,7 @@ from rich.console import Console
 from tensorboardX import SummaryWriter
 
 if TYPE_CHECKING:
-    from league.schedule import PhaseState
+    from league.core.schedule import PhaseState
     from league.head_to_head import PairEvaluation
 
 TRAIN_METRICS = ("policy_loss", "vf_loss", "entropy", "mean_kl_loss")

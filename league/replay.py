@@ -21,7 +21,7 @@ from envs.agents import Outcome
 from envs.match import play
 from envs.scenarios import evaluation_scenarios
 from league.evaluate import count
-from league.players import Player
+from league.core.players import Player
 from league.run_dir import RunDirError, open_run
 
 

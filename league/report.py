@@ -42,8 +42,8 @@ from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Ex
 from league.generations import GenerationLine, generation_lines, generations_plot
 from league.head_to_head import agents_of, evaluate_pairs
 from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
-from league.payoff import aggregate, attacker_won, league_ratings, wilson_interval, wins_of
-from league.players import POOL_KINDS, Player
+from league.core.payoff import aggregate, attacker_won, league_ratings, wilson_interval, wins_of
+from league.core.players import POOL_KINDS, Player
 from league.run_dir import RunDirError, open_run
 from league.store import LeagueStore
 

@@ -21,7 +21,7 @@ from league.curves import quantities, reference_colour
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
 from league.generations import generations_figure
 from league.nash import META_GAME_NOTE, MIXTURE_HEADER
-from league.players import POOL_KINDS
+from league.core.players import POOL_KINDS
 from league.report import (
     CURVES_NOTE,
     GENERATIONS_NOTE,

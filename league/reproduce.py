@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from league.payoff import aggregate
+from league.core.payoff import aggregate
 from league.report import PAPER_TABLE_1
 from league.run_dir import RunDirError, lock_run
 from league.store import LeagueStore

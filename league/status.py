@@ -15,7 +15,7 @@ from rich.table import Table
 
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability
 from league.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_game
-from league.payoff import aggregate, player_record
+from league.core.payoff import aggregate, player_record
 from league.run_dir import RunDirError, open_run, usable_checkpoints
 from league.store import LeagueStore
 

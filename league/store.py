@@ -22,7 +22,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
-from league.players import Player
+from league.core.players import Player
 
 DB_NAME = "league.db"
 

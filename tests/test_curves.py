@@ -10,7 +10,7 @@ from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig
 from league.curves import GameStats, LearningCurves, main as curves_main, plot_run, read_curves
 from league.head_to_head import agents_of
-from league.players import Player
+from league.core.players import Player
 from league.run_dir import open_run
 from league.store import LeagueStore
 

@@ -7,7 +7,7 @@ import ray
 import torch
 
 from league.config import RunConfig
-from league.players import Player
+from league.core.players import Player
 from envs.agents import Outcome
 from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
 from league.rllib_bridge import (

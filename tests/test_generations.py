@@ -7,7 +7,7 @@ from PIL import Image
 
 from league.config import saved_run_config
 from league.generations import generation_lines, generations_figure, generations_plot
-from league.players import Player
+from league.core.players import Player
 from league.report import build_report, gather
 from league.store import LeagueStore
 

@@ -14,7 +14,7 @@ from league.evaluate import main as evaluate_main
 from league.head_to_head import LearnedAgent, deterministic, evaluate_pairs, play_fixed_games
 from league.rllib_bridge import learner_spec
 from league.rollout import ScriptedOnState
-from league.players import Player
+from league.core.players import Player
 from league.report import main as report_main
 
 ATTACKER = Player(id=1, side="attacker", kind="scripted", version=0, scripted_attacker="proportional_navigation")

@@ -6,7 +6,7 @@ import pytest
 import ray
 
 from league.config import RunConfig
-from league.players import Player
+from league.core.players import Player
 from league.rllib_bridge import MatchPlan, build_config, learner_env_steps, episode_outcomes, set_match_plan, set_trainable
 
 

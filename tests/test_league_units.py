@@ -5,11 +5,11 @@ import pytest
 import torch
 
 from league.config import CONFIG_DIR, ConfigError, RunConfig, load_config
-from league.payoff import wilson_interval
+from league.core.payoff import wilson_interval
 from envs.agents import Outcome
-from league.payoff import ATTACKER_WINS, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
-from league.players import Player
-from league.pfsp import pfsp_probabilities
+from league.core.payoff import ATTACKER_WINS, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
+from league.core.players import Player
+from league.core.pfsp import pfsp_probabilities
 from league.rllib_bridge import MatchPlan, learner_spec
 from league.run import main as run_main
 from league.store import LeagueStore

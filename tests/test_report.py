@@ -10,8 +10,8 @@ from PIL import Image
 from envs.agents import ATTACKER, DEFENDER
 from league.browser_check import check_page, find_chromium
 from league.evaluate import main as evaluate_main
-from league.payoff import wilson_interval
-from league.payoff import ATTACKER_WINS, aggregate
+from league.core.payoff import wilson_interval
+from league.core.payoff import ATTACKER_WINS, aggregate
 from league.report import build_report
 from league.report_html import AGENT_COLOURS
 from league.store import LeagueStore

@@ -17,7 +17,7 @@ import torch
 
 from envs.core import BatchedGame
 from league.config import RunConfig
-from league.players import Player
+from league.core.players import Player
 from league.rllib_bridge import MatchPlan, build_config, set_trainable
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate
 from ray.rllib.core.columns import Columns

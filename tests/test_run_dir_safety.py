@@ -455,7 +455,7 @@ def test_resuming_a_finished_run_says_so_without_starting_ray(run_copy, monkeypa
 def test_status_and_evaluate_give_their_numbers_as_json(run_copy, capsys):
     import json
 
-    from league.payoff import aggregate, player_record
+    from league.core.payoff import aggregate, player_record
 
     assert status.main(["--run-dir", str(run_copy), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)

@@ -1,10 +1,10 @@
-"""The league's schedules (``league.schedule``): who learns, against whom, when a phase ends."""
+"""The league's schedules (``league.core.schedule``): who learns, against whom, when a phase ends."""
 
 import pytest
 
 from league.config import RunConfig
-from league.players import Player
-from league.schedule import PhaseState, ProtocolSchedule, SelfPlaySchedule, schedule_of
+from league.core.players import Player
+from league.core.schedule import PhaseState, ProtocolSchedule, SelfPlaySchedule, schedule_of
 
 SCRIPTED = [Player(5, "team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit")]
 SNAPSHOTS = [Player(6, "team", "snapshot", 0), Player(7, "team", "snapshot", 1)]

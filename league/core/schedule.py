@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from league.config import LeagueSettings, RunConfig
-from league.players import Player
+from league.core.players import Player
 
 
 @dataclass
