@@ -1,10 +1,10 @@
 """The ceiling for training speed: a minimal plain-PyTorch PPO on the same game core.
 
 CleanRL-style, one file, no Ray: the config's attacker against its first scripted team,
-played by ``league.rollout`` (the games and step loop of the fast sampler), with the network, batch,
+played by ``league.rollout.games`` (the games and step loop of the fast sampler), with the network, batch,
 minibatch, epochs and loss of ``league.rllib_bridge``'s PPO: a Gaussian policy with a
 state-independent log-std and a separate value network (``league.modules.mlp``), GAE
-(``league.train_batch``), standardised advantages, the clipped surrogate, the value
+(``league.rollout.train_batch``), standardised advantages, the clipped surrogate, the value
 loss, the entropy bonus and RLlib's adaptive KL penalty (coefficient 0.2, target 0.01),
 gradients clipped by global norm. ``bench/train_throughput.py`` runs it beside the
 league's samplers; ``python bench/plain_ppo.py --env-steps N`` runs it alone.
@@ -23,8 +23,8 @@ from envs.agents import Outcome
 from envs.vector_env import TargetDefenseVectorEnv
 from league.config import RunConfig, load_config
 from league.modules import INITIAL_LOG_STD, mlp
-from league.rollout import Rollout, ScriptedOnState
-from league.train_batch import gae, standardized
+from league.rollout.games import Rollout, ScriptedOnState
+from league.rollout.train_batch import gae, standardized
 
 KL_COEFF, KL_TARGET = 0.2, 0.01  # RLlib's PPO defaults, which the league's PPO keeps
 

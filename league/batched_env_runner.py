@@ -3,7 +3,7 @@
 RLlib's ``MultiAgentEnvRunner`` steps each sub-environment in a Python loop and runs
 its connector pipelines on every step. ``BatchedEnvRunner`` keeps everything else of it
 (the modules, weight and state sync, checkpoints, metrics, fault tolerance) and replaces
-``sample()``: the games are played by ``league.rollout`` (one step of all N games is one
+``sample()``: the games are played by ``league.rollout.games`` (one step of all N games is one
 call of ``envs.vector_env`` and one forward pass per module over every (game, agent) it
 plays); this class turns the rollout's rows into what RLlib wants. Episodes reach the Learner as
 ``MultiAgentEpisode`` chunks built from the arrays, with the observations, actions,
@@ -27,7 +27,7 @@ Differences, all for speed:
 
 ``sample_training_data`` is the fast path (``resources.sampler: fast``): the same play,
 but no episode objects at all; PPO's columns, with advantages and value targets by GAE
-over the arrays (``league.train_batch``), go straight to the Learner (``LeaguePPO``).
+over the arrays (``league.rollout.train_batch``), go straight to the Learner (``LeaguePPO``).
 Finished games still log their metrics and outcome; no episode callback is called.
 Scripted players act on the games' exact state (as in evaluation), not on the float32
 global state that their RLModule decodes on the other paths.
@@ -51,8 +51,8 @@ from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
 from envs.vector_env import TargetDefenseVectorEnv
 from league import rllib_compat as compat
 from league.modules import ScriptedModule
-from league.rollout import Policy, Rollout, Rows, ScriptedOnState
-from league.train_batch import gae, potential_shaping
+from league.rollout.games import Policy, Rollout, Rows, ScriptedOnState
+from league.rollout.train_batch import gae, potential_shaping
 from ray.rllib.callbacks.utils import make_callback
 from ray.rllib.core.columns import Columns
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
@@ -224,7 +224,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
 
     def sample_training_data(self, num_timesteps: int) -> dict[str, dict[str, np.ndarray]]:
         """Play at least ``num_timesteps`` env steps, exploring; PPO's training data of every
-        trained module straight from the arrays (``league.train_batch``), no episodes.
+        trained module straight from the arrays (``league.rollout.train_batch``), no episodes.
 
         Module id -> columns ``obs``, ``actions``, ``action_logp``, ``action_dist_inputs``,
         ``advantages`` (not yet standardised: that is done over all runners' data) and

@@ -53,7 +53,7 @@ class PPOSettings(Strict):
     """GAE ``lambda`` of the team learner; ``None``: ``lambda_``. Same sampler caveat."""
     targeter_shaping: float = Field(0.0, ge=0)
     """``k``: in training, T's rewards get the potential-based shaping ``gamma Phi(s') - Phi(s)``
-    with ``Phi = -k |T ter|`` (``league.train_batch.potential_shaping``): ``k`` per unit T
+    with ``Phi = -k |T ter|`` (``league.rollout.train_batch.potential_shaping``): ``k`` per unit T
     closes on the terminal, paid back when the game ends, so it changes no policy's ranking.
     Without it T never found the terminal sphere (radius ``v_T``, one step of T) by exploring,
     and trained teams won only by D's interceptions (README, "The team's learning"). Returns
@@ -106,7 +106,7 @@ class Resources(Strict):
     on the nodes started with that resource (``ray start --resources``)."""
     sampler: Literal["fast", "batched", "standard"] = "fast"
     """``fast``: every runner steps its games as arrays (``league.batched_env_runner``) and
-    PPO's training batch is built from those arrays (``league.train_batch``); ``batched``:
+    PPO's training batch is built from those arrays (``league.rollout.train_batch``); ``batched``:
     the same games handed to RLlib's learner pipeline as episodes; ``standard``: RLlib's
     ``MultiAgentEnvRunner``, one game at a time. All three train the same PPO; the last
     two are kept for comparison and debugging."""

@@ -2,7 +2,7 @@
 
 Learned players are RLModules loaded from their saved directories and run with plain
 torch forward passes (the Gaussian's mean, i.e. the deterministic action), one per module
-and step over all its games (``league.rollout``); scripted players are ``envs.scripted``
+and step over all its games (``league.rollout.games``); scripted players are ``envs.scripted``
 players acting on the games' exact state. Every pair plays the same fixed seeded games
 (``envs.scenarios.evaluation_scenarios``), each once, to its end.
 
@@ -30,7 +30,7 @@ from envs.scripted import ScriptedPlayer
 from envs.vector_env import TargetDefenseVectorEnv
 from league.core.payoff import wilson_interval
 from league.core.players import Player
-from league.rollout import ModuleAct, Policy, Rollout, ScriptedOnState
+from league.rollout.games import ModuleAct, Policy, Rollout, ScriptedOnState
 
 WORKER_START_S = 60.0  # how long evaluation workers may take to start before the driver plays their games
 EVALUATION_CHUNK = 64  # steps per rollout play: bounds the rows kept, whatever the number of games

@@ -39,7 +39,7 @@ from league.flat_adam import FlatAdam
 from league.modules import ActorCriticModule, ScriptedModule
 from league.ppo_loss import LossRows, PPOCoefficients, loss_stats, ppo_loss
 from league.core.players import Player
-from league.train_batch import minibatch_rows, standardized
+from league.rollout.train_batch import minibatch_rows, standardized
 from ray.rllib.algorithms.algorithm import Algorithm
 from ray.rllib.algorithms.ppo import PPO, PPOConfig
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner

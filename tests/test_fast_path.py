@@ -13,7 +13,7 @@ from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
 from league.rllib_bridge import (
     MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable, training_batch,
 )
-from league.train_batch import gae, minibatch_rows, potential_shaping
+from league.rollout.train_batch import gae, minibatch_rows, potential_shaping
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
 from ray.rllib.core.columns import Columns

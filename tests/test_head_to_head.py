@@ -13,7 +13,7 @@ from league.config import load_config
 from league.evaluate import main as evaluate_main
 from league.head_to_head import LearnedAgent, deterministic, evaluate_pairs, play_fixed_games
 from league.rllib_bridge import learner_spec
-from league.rollout import ScriptedOnState
+from league.rollout.games import ScriptedOnState
 from league.core.players import Player
 from league.report import main as report_main
 

@@ -109,7 +109,7 @@ def test_the_scans_find_planted_violations(tmp_path):
         COMPAT: "seed = runner._seed\n",
         "league/runner.py": 'x = config._env_to_module_connector  # reads a private field\ny = "ray._common"\n',
         "league/chunk.py": "episode.env_t = 3\nepisode.is_terminated = True\nok = episode.env_t == 3\n",
-        "league/rollout.py": "self.env_t[game] = 0  # the rollout's own counter, not an episode's\n",
+        "league/rollout/games.py": "self.env_t[game] = 0  # the rollout's own counter, not an episode's\n",
         "league/run.py": "algo = Algorithm.from_checkpoint(path)\nstats = result['learners']\n",
     })
     assert scan(root, foreign_private_attributes, {COMPAT}) == {"league/runner.py": ["config._env_to_module_connector (line 1)"]}

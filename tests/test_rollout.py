@@ -1,4 +1,4 @@
-"""The rollout core (``league.rollout``), without Ray: slots, the step loop, one call per module."""
+"""The rollout core (``league.rollout.games``), without Ray: slots, the step loop, one call per module."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from envs.agents import AGENTS, Outcome
 from envs.config import GameConfig
 from envs.scripted import PAPER_TEAM, ScriptedPlayer
 from envs.vector_env import TargetDefenseVectorEnv
-from league.rollout import Rollout, ScriptedOnState
+from league.rollout.games import Rollout, ScriptedOnState
 
 GAMES = 6
 SCRIPTED = {"attacker": "lead_intercept", **PAPER_TEAM}
