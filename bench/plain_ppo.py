@@ -2,8 +2,8 @@
 
 CleanRL-style, one file, no Ray: the config's attacker against its first scripted team,
 played by ``league.rollout.games`` (the games and step loop of the fast sampler), with the network, batch,
-minibatch, epochs and loss of ``league.rllib_bridge``'s PPO: a Gaussian policy with a
-state-independent log-std and a separate value network (``league.modules.mlp``), GAE
+minibatch, epochs and loss of ``league.rllib.bridge``'s PPO: a Gaussian policy with a
+state-independent log-std and a separate value network (``league.rllib.modules.mlp``), GAE
 (``league.rollout.train_batch``), standardised advantages, the clipped surrogate, the value
 loss, the entropy bonus and RLlib's adaptive KL penalty (coefficient 0.2, target 0.01),
 gradients clipped by global norm. ``bench/train_throughput.py`` runs it beside the
@@ -22,7 +22,7 @@ from torch import nn
 from envs.agents import Outcome
 from envs.vector_env import TargetDefenseVectorEnv
 from league.config import RunConfig, load_config
-from league.modules import INITIAL_LOG_STD, mlp
+from league.rllib.modules import INITIAL_LOG_STD, mlp
 from league.rollout.games import Rollout, ScriptedOnState
 from league.rollout.train_batch import gae, standardized
 

@@ -105,7 +105,7 @@ class Resources(Strict):
     """Custom Ray resources each env runner needs, e.g. ``{sampler: 1}`` to place runners
     on the nodes started with that resource (``ray start --resources``)."""
     sampler: Literal["fast", "batched", "standard"] = "fast"
-    """``fast``: every runner steps its games as arrays (``league.batched_env_runner``) and
+    """``fast``: every runner steps its games as arrays (``league.rllib.env_runner``) and
     PPO's training batch is built from those arrays (``league.rollout.train_batch``); ``batched``:
     the same games handed to RLlib's learner pipeline as episodes; ``standard``: RLlib's
     ``MultiAgentEnvRunner``, one game at a time. All three train the same PPO; the last

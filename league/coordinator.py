@@ -32,7 +32,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from league import rllib_bridge as bridge
+from league.rllib import bridge
 from league.config import RunConfig
 from league.curves import LearningCurves, Measurements
 from league.evaluate import method_table

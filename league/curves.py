@@ -188,7 +188,7 @@ class LearningCurves:
         steps_now: dict[str, int],
     ) -> Measurements:
         """Curve points of the due ``learners`` (all of one side), and the reference rows not yet stored."""
-        from league import rllib_bridge as bridge
+        from league.rllib import bridge
 
         measured = Measurements([], [])
         due = self.due(learners, steps_before, steps_now)

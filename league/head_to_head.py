@@ -59,8 +59,8 @@ class LearnedAgent:
 
 
 def load_module(path: str | Path) -> torch.nn.Module:
-    """A saved player's RLModule, in eval mode (``league.rllib_bridge.load_module``)."""
-    from league import rllib_bridge
+    """A saved player's RLModule, in eval mode (``league.rllib.bridge.load_module``)."""
+    from league.rllib import bridge as rllib_bridge
 
     return rllib_bridge.load_module(path)
 

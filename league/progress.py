@@ -70,7 +70,7 @@ class ProgressReporter:
         """Report ``iteration`` (``env_steps`` in all so far), trained in ``phase`` (as it stood after it).
 
         ``learner_stats``: the Learner's results per learner module
-        (``league.rllib_bridge.learner_stats``); ``steps``: the env steps of this iteration.
+        (``league.rllib.bridge.learner_stats``); ``steps``: the env steps of this iteration.
         """
         phase_rate = phase.learner_wins / phase.episodes if phase.episodes else float("nan")
         side = phase.side

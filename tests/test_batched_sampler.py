@@ -7,10 +7,10 @@ import torch
 from torch import nn
 
 from envs.agents import AGENTS
-from league.batched_env_runner import BatchedEnvRunner
+from league.rllib.env_runner import BatchedEnvRunner
 from league.config import RunConfig
 from league.core.players import Player
-from league.rllib_bridge import MatchPlan, build_config, episode_outcomes, set_trainable
+from league.rllib.bridge import MatchPlan, build_config, episode_outcomes, set_trainable
 from ray.rllib.core.columns import Columns
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 

@@ -10,7 +10,7 @@ from league.config import RunConfig
 from league.core.players import Player
 from envs.agents import Outcome
 from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
-from league.rllib_bridge import (
+from league.rllib.bridge import (
     MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable, training_batch,
 )
 from league.rollout.train_batch import gae, minibatch_rows, potential_shaping

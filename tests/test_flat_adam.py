@@ -11,8 +11,8 @@ import pytest
 import torch
 
 from league.config import load_config
-from league.flat_adam import FlatAdam
-from league.rllib_bridge import learner_spec
+from league.rllib.flat_adam import FlatAdam
+from league.rllib.bridge import learner_spec
 
 
 @pytest.mark.parametrize("side, reward_method", [("attacker", 2), ("team", None)])

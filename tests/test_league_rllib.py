@@ -7,7 +7,7 @@ import ray
 
 from league.config import RunConfig
 from league.core.players import Player
-from league.rllib_bridge import MatchPlan, build_config, learner_env_steps, episode_outcomes, set_match_plan, set_trainable
+from league.rllib.bridge import MatchPlan, build_config, learner_env_steps, episode_outcomes, set_match_plan, set_trainable
 
 
 def trained(result, module):
@@ -76,7 +76,7 @@ def test_reward_connector_pays_each_attacker_module_its_own_method(algo):
 
     import numpy as np
 
-    from league.rllib_bridge import AttackerRewardByMethod
+    from league.rllib.bridge import AttackerRewardByMethod
     from ray.rllib.connectors.learner.add_one_ts_to_episodes_and_truncate import AddOneTsToEpisodesAndTruncate
 
     episodes = algo.env_runner.sample(num_episodes=3, random_actions=True, force_reset=True)
@@ -102,7 +102,7 @@ def test_snapshots_carry_the_learners_weights_into_sampling_files_and_checkpoint
     from ray.rllib.algorithms.algorithm import Algorithm
 
     from league.head_to_head import load_module
-    from league.rllib_bridge import add_snapshot, learner_weights, save_module
+    from league.rllib.bridge import add_snapshot, learner_weights, save_module
 
     run = RunConfig(name="wiring", ppo={"hidden": [16]})
     snapshot = Player(id=9, side="attacker", kind="snapshot", version=7, reward_method=2)

@@ -2,7 +2,7 @@
 
 The attacker module trains on reward method 3 while the env's own attacker reward is
 method 1, so its reward must come from the per-method rewards: on the fast path from the
-sampler's arrays (``league.batched_env_runner``), on the batched and standard paths from
+sampler's arrays (``league.rllib.env_runner``), on the batched and standard paths from
 the episodes' infos through the reward connector (``AttackerRewardByMethod``). The
 oracle is the core itself: every call of ``BatchedGame.step`` is logged, keyed by the
 attacker's action (a float32 Gaussian sample: unique), with A's method-3 reward of that
@@ -18,7 +18,7 @@ import torch
 from envs.core import BatchedGame
 from league.config import RunConfig
 from league.core.players import Player
-from league.rllib_bridge import MatchPlan, build_config, set_trainable
+from league.rllib.bridge import MatchPlan, build_config, set_trainable
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate
 from ray.rllib.core.columns import Columns
 from ray.rllib.evaluation.postprocessing import Postprocessing

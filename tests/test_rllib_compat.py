@@ -1,7 +1,7 @@
-"""RLlib behind one adapter: internals only in ``league.rllib_compat``, pinned to the Ray version.
+"""RLlib behind one adapter: internals only in ``league.rllib.compat``, pinned to the Ray version.
 
-``league/rllib_compat.py`` holds every read or write of RLlib's private attributes and
-episode internals; ``league/rllib_bridge.py`` (the adapter) every checkpoint load and
+``league/rllib/compat.py`` holds every read or write of RLlib's private attributes and
+episode internals; ``league/rllib/bridge.py`` (the adapter) every checkpoint load and
 every parse of ``train()`` results. The scans below check the source tree for that, and
 each is shown to find a planted violation.
 """
@@ -16,13 +16,13 @@ import tokenize
 
 import ray
 
-from league import rllib_compat
+from league.rllib import compat as rllib_compat
 from test_layering import ROOT, plant, source_files
 
-COMPAT = "league/rllib_compat.py"
-ADAPTER = "league/rllib_bridge.py"
+COMPAT = "league/rllib/compat.py"
+ADAPTER = "league/rllib/bridge.py"
 # Modules whose classes subclass RLlib's (EnvRunner, Algorithm, Learner, RLModule, callbacks, connectors).
-RLLIB_SUBCLASSING = ("league.batched_env_runner", "league.rllib_bridge", "league.modules")
+RLLIB_SUBCLASSING = ("league.rllib.env_runner", "league.rllib.bridge", "league.rllib.modules")
 # Writes of a MultiAgentEpisode's internals (what RLlib's add_env_step keeps consistent), on
 # the names our code gives episodes.
 EPISODE_INTERNALS = re.compile(
@@ -34,7 +34,7 @@ CHECKPOINTS_AND_RESULTS = re.compile(r"\bfrom_checkpoint\b|\bLEARNER_RESULTS\b|\
 
 
 def test_written_for_the_installed_ray():
-    # On a Ray upgrade: read league/rllib_compat.py against the new RLlib source, then move the pin.
+    # On a Ray upgrade: read league/rllib/compat.py against the new RLlib source, then move the pin.
     assert ray.__version__ == rllib_compat.RAY_VERSION
 
 

@@ -130,7 +130,7 @@ def test_export_to_an_existing_directory_is_refused_and_leaves_nothing(run_copy,
 
 
 def test_a_new_run_that_fails_while_building_removes_its_directory(tiny_config, tmp_path, monkeypatch):
-    from league import rllib_bridge
+    from league.rllib import bridge as rllib_bridge
 
     def broken_build(*args, **kwargs):
         assert (run_dir / "league.db").exists()  # the failure comes after the first writes

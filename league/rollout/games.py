@@ -15,7 +15,7 @@ What the games produced goes into ``Rows``: arrays ``[row, game, ...]``. A modul
 by a ``ModuleAct`` (observations in, actions and per-row outputs out: a network's forward
 pass) or, for scripted players, by ``ScriptedOnState`` (they act on the games' exact state).
 
-Used by the RLlib env runner (``league.batched_env_runner``, which turns the rows into
+Used by the RLlib env runner (``league.rllib.env_runner``, which turns the rows into
 episodes or PPO's training batch), by evaluation (``league.head_to_head``: frozen players on
 the fixed games) and by the plain-PyTorch PPO bench (``bench/plain_ppo.py``);
 ``tests/test_rollout.py`` runs it without Ray.

@@ -1,7 +1,7 @@
 """PPO training data straight from rollout arrays, without episode objects (no Ray, no RLlib).
 
 A rollout of ``G`` games over ``T`` steps is held as arrays ``[t, game]`` (the fast
-sampler, ``league.batched_env_runner``, fills them). For one module and one agent slot:
+sampler, ``league.rllib.env_runner``, fills them). For one module and one agent slot:
 
 | array      | shape     | meaning                                                        |
 | ---------- | --------- | -------------------------------------------------------------- |
@@ -21,7 +21,7 @@ only (RLlib also counts the extra bootstrap step it appends to every chunk, whos
 advantage is 0), as CleanRL's PPO does. ``tests/test_fast_path.py`` checks the two.
 
 ``minibatch_rows`` is the order in which RLlib's Learner passes over such a batch, for a
-Learner that slices the arrays itself (``league.rllib_bridge.LeaguePPOLearner``).
+Learner that slices the arrays itself (``league.rllib.bridge.LeaguePPOLearner``).
 """
 
 from __future__ import annotations

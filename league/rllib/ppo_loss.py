@@ -1,4 +1,4 @@
-"""RLlib's PPO loss for ``league.modules.ActorCriticModule``, in plain torch.
+"""RLlib's PPO loss for ``league.rllib.modules.ActorCriticModule``, in plain torch.
 
 The formula and the order of operations of Ray 2.60's ``PPOTorchLearner.compute_loss_for_module``
 (no loss mask, with a critic), the diagonal Gaussian's log-probability, entropy and KL as

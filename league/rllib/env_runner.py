@@ -49,8 +49,8 @@ import torch
 from envs.agents import AGENTS, Outcome
 from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
 from envs.vector_env import TargetDefenseVectorEnv
-from league import rllib_compat as compat
-from league.modules import ScriptedModule
+from league.rllib import compat
+from league.rllib.modules import ScriptedModule
 from league.rollout.games import Policy, Rollout, Rows, ScriptedOnState
 from league.rollout.train_batch import gae, potential_shaping
 from ray.rllib.callbacks.utils import make_callback

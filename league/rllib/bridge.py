@@ -1,7 +1,7 @@
 """Where the league meets RLlib: algorithm config, modules, mapping, results, checkpoints.
 
-(Besides this module, RLlib is imported by the fast sampler, ``league.batched_env_runner``,
-the RLModules, ``league.modules``, and ``league.rllib_compat``, the one module that
+(Besides this module, RLlib is imported by the fast sampler, ``league.rllib.env_runner``,
+the RLModules, ``league.rllib.modules``, and ``league.rllib.compat``, the one module that
 touches RLlib's private attributes and episode internals. Checkpoints are loaded and
 ``train()`` results read only here.)
 
@@ -32,12 +32,12 @@ from envs.agents import AGENTS
 from envs.observations import observation_size
 from envs.rllib_env import TargetDefenseMultiAgentEnv, policy_input_space
 from envs.single import action_space
-from league.batched_env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, log_outcome, seed_iteration
-from league import rllib_compat as compat
+from league.rllib.env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, log_outcome, seed_iteration
+from league.rllib import compat
 from league.config import RunConfig
-from league.flat_adam import FlatAdam
-from league.modules import ActorCriticModule, ScriptedModule
-from league.ppo_loss import LossRows, PPOCoefficients, loss_stats, ppo_loss
+from league.rllib.flat_adam import FlatAdam
+from league.rllib.modules import ActorCriticModule, ScriptedModule
+from league.rllib.ppo_loss import LossRows, PPOCoefficients, loss_stats, ppo_loss
 from league.core.players import Player
 from league.rollout.train_batch import minibatch_rows, standardized
 from ray.rllib.algorithms.algorithm import Algorithm
@@ -347,7 +347,7 @@ class LeaguePPOLearner(PPOTorchLearner):
     steps of RLlib's ``Learner.update`` (Ray 2.60) and reports its results: the same
     minibatches in the same order (``train_batch.minibatch_rows``, drawing RLlib's shuffles
     from NumPy's global generator), RLlib's PPO loss operation for operation
-    (``league.ppo_loss``), the same backward pass, clipping by global norm and Adam step,
+    (``league.rllib.ppo_loss``), the same backward pass, clipping by global norm and Adam step,
     the same steps counted, then RLlib's ``after_gradient_based_update`` (lr, entropy and KL
     coefficients). ``tests/test_fast_path.py`` checks the weights equal to the bit and the
     results equal to RLlib's update. Cheaper:
