@@ -25,7 +25,7 @@ from envs.scenarios import evaluation_scenarios
 from envs.scripted import PAPER_TEAM, act_from_state
 from league.config import RunConfig, saved_run_config
 from league.head_to_head import EvaluationPool, evaluate_pairs, load_module
-from league.store import LeagueStore
+from league.state.store import LeagueStore
 
 
 def rllib_env_rate(run: RunConfig, module, positions: np.ndarray) -> float:

@@ -30,7 +30,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from league.store import DB_NAME, DamagedStoreError, LeagueStore
+from league.state.store import DB_NAME, DamagedStoreError, LeagueStore
 
 SIGNALS = {"SIGKILL": signal.SIGKILL, "SIGTERM": signal.SIGTERM, "SIGINT": signal.SIGINT}
 EXPECTED_EXIT = {"SIGKILL": -9, "SIGTERM": 143, "SIGINT": 130}

@@ -43,7 +43,7 @@ from league.head_to_head import play_fixed_games, policies_of
 from league.core.payoff import wilson_interval
 from league.core.players import Player
 from league.reproduce import finished, train_run
-from league.run_dir import open_run
+from league.state.run_dir import open_run
 
 ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance")
 

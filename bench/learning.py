@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from league.core.payoff import aggregate, wilson_interval
-from league.store import LeagueStore
+from league.state.store import LeagueStore
 
 
 def rate(store: LeagueStore, attacker: str, team: str) -> tuple[float, tuple[float, float], int]:

@@ -1,6 +1,6 @@
 """Same config, same seed, same run: train a config twice (and, with ``--kills K``, a third
 time killed K times at random moments with SIGKILL and resumed), then list where the run
-directories differ (``league.run_dir.run_differences``: the league database but its
+directories differ (``league.state.run_dir.run_differences``: the league database but its
 wall-clock columns, and every saved player's weights).
 
     python bench/same_seed.py --config smoke --kills 2
@@ -22,8 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from league.run_dir import run_differences
-from league.store import DamagedStoreError, LeagueStore
+from league.state.run_dir import run_differences
+from league.state.store import DamagedStoreError, LeagueStore
 
 
 def iterations(run_dir: Path) -> int:

@@ -41,10 +41,10 @@ from league.core.payoff import aggregate, attacker_won, league_ratings, record_a
 from league.core.pfsp import pfsp_probabilities
 from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
 from league.progress import IterationTiming, ProgressReporter
-from league.run_dir import record_config, write_manifest
+from league.state.run_dir import record_config, write_manifest
 from league.core.schedule import PhaseState, schedule_of
 from league.stop import StopRequests
-from league.store import DB_NAME, LeagueStore
+from league.state.store import DB_NAME, LeagueStore
 
 CHECKPOINTS_KEPT = 2
 GAMES_FILE = "games_in_flight.pkl"  # in a checkpoint directory: the env runners' games in flight

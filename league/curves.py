@@ -457,7 +457,7 @@ def summary_table(groups: list[list[Curve]], run_names: list[str], terminal_rewa
 
 def study(run_dirs: list[Path], out: Path) -> tuple[Path, Path]:
     """Curves of several runs of one config: ``OUT/curves.png`` and ``OUT/curves.md``."""
-    from league.run_dir import open_run
+    from league.state.run_dir import open_run
 
     per_run: list[dict[tuple[str, str], Curve]] = []
     configs = []
@@ -494,7 +494,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run-dirs", type=Path, nargs="+", required=True)
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args(argv)
-    from league.run_dir import RunDirError
+    from league.state.run_dir import RunDirError
 
     try:
         png, md = study(args.run_dirs, args.out)

@@ -24,7 +24,7 @@ from league.head_to_head import PairEvaluation, evaluate_pairs, format_table
 from league.nash import format_meta_game, meta_game, meta_game_players
 from league.core.payoff import league_ratings, wilson_interval
 from league.core.players import Player
-from league.run_dir import RunDirError, open_run
+from league.state.run_dir import RunDirError, open_run
 
 
 def latest_by_method(players: list[Player]) -> dict[int, Player]:

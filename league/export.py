@@ -34,8 +34,8 @@ from torch import nn
 from envs.observations import split_policy_input
 from envs.single import action_space, observation_space
 from league.core.players import POOL_KINDS, Player
-from league.run_dir import RunDirError, open_run
-from league.store import LeagueStore
+from league.state.run_dir import RunDirError, open_run
+from league.state.store import LeagueStore
 
 METADATA_FILE = "metadata.json"
 FORMATS = ("export", "torchscript", "onnx")

@@ -22,7 +22,7 @@ from envs.match import play
 from envs.scenarios import evaluation_scenarios
 from league.evaluate import count
 from league.core.players import Player
-from league.run_dir import RunDirError, open_run
+from league.state.run_dir import RunDirError, open_run
 
 
 def find_player(players: list[Player], name: str, side: str) -> Player:

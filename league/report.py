@@ -44,8 +44,8 @@ from league.head_to_head import agents_of, evaluate_pairs
 from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
 from league.core.payoff import aggregate, attacker_won, league_ratings, wilson_interval, wins_of
 from league.core.players import POOL_KINDS, Player
-from league.run_dir import RunDirError, open_run
-from league.store import LeagueStore
+from league.state.run_dir import RunDirError, open_run
+from league.state.store import LeagueStore
 
 # The paper's Table 1: A's winning percentage over 100 test rounds per method.
 PAPER_TABLE_1 = {1: 0.48, 2: 0.6253, 3: 0.5763}

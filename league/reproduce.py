@@ -42,8 +42,8 @@ import numpy as np
 
 from league.core.payoff import aggregate
 from league.report import PAPER_TABLE_1
-from league.run_dir import RunDirError, lock_run
-from league.store import LeagueStore
+from league.state.run_dir import RunDirError, lock_run
+from league.state.store import LeagueStore
 
 BOOTSTRAP_SAMPLES = 10_000
 
@@ -157,7 +157,7 @@ def own_method_returns(run_dir: Path, method: int) -> tuple[float, float, str] |
     method at the last point, and the best scripted attacker's on the same games (with the run's
     terminal reward); ``None`` when the run recorded no curve."""
     from league.curves import read_curves
-    from league.run_dir import open_run
+    from league.state.run_dir import open_run
 
     run, store = open_run(run_dir)
     try:

@@ -37,7 +37,7 @@ import yaml
 from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, load_config
 from league.coordinator import Coordinator, phase_count
 from league.progress import ProgressReporter
-from league.run_dir import (
+from league.state.run_dir import (
     LOCK_FILE,
     RunDirError,
     check_config_unchanged,
@@ -50,7 +50,7 @@ from league.run_dir import (
     usable_checkpoints,
 )
 from league.stop import StopRequests, Stopped
-from league.store import DB_NAME, LeagueStore
+from league.state.store import DB_NAME, LeagueStore
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

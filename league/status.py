@@ -16,8 +16,8 @@ from rich.table import Table
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability
 from league.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_game
 from league.core.payoff import aggregate, player_record
-from league.run_dir import RunDirError, open_run, usable_checkpoints
-from league.store import LeagueStore
+from league.state.run_dir import RunDirError, open_run, usable_checkpoints
+from league.state.store import LeagueStore
 
 
 def league_table(store: LeagueStore, source: str | None = None) -> Table:

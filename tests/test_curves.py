@@ -11,8 +11,8 @@ from league.config import RunConfig
 from league.curves import GameStats, LearningCurves, main as curves_main, plot_run, read_curves
 from league.head_to_head import agents_of
 from league.core.players import Player
-from league.run_dir import open_run
-from league.store import LeagueStore
+from league.state.run_dir import open_run
+from league.state.store import LeagueStore
 
 TERMINAL_REWARD = 30.0
 

@@ -9,7 +9,7 @@ from league.config import saved_run_config
 from league.generations import generation_lines, generations_figure, generations_plot
 from league.core.players import Player
 from league.report import build_report, gather
-from league.store import LeagueStore
+from league.state.store import LeagueStore
 
 A0 = Player(1, "attacker", "snapshot", 0, 2)
 A1 = Player(2, "attacker", "snapshot", 1, 2)

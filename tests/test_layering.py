@@ -20,7 +20,7 @@ SQL = re.compile(
     r"|\bSELECT\b[^\n]*\bFROM\b|\bINSERT\s+(OR\s+\w+\s+)?INTO\b|\bUPDATE\s+\w+\s+SET\b|\bDELETE\s+FROM\b"
     r"|\b(CREATE|ALTER|DROP)\s+TABLE\b"
 )
-SQL_HOME = "league/store.py"
+SQL_HOME = "league/state/store.py"
 
 
 def source_files(root: Path) -> list[Path]:

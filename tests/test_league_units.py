@@ -12,7 +12,7 @@ from league.core.players import Player
 from league.core.pfsp import pfsp_probabilities
 from league.rllib.bridge import MatchPlan, learner_spec
 from league.run import main as run_main
-from league.store import LeagueStore
+from league.state.store import LeagueStore
 from ray.rllib.core.columns import Columns
 
 

@@ -14,7 +14,7 @@ from league.core.payoff import wilson_interval
 from league.core.payoff import ATTACKER_WINS, aggregate
 from league.report import build_report
 from league.report_html import AGENT_COLOURS
-from league.store import LeagueStore
+from league.state.store import LeagueStore
 
 
 

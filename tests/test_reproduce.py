@@ -10,8 +10,8 @@ import pytest
 
 from league.config import load_config
 from league.reproduce import Budget, phases_override
-from league.run_dir import lock_holder
-from league.store import LeagueStore
+from league.state.run_dir import lock_holder
+from league.state.store import LeagueStore
 
 TINY = [
     "--set", "ppo.train_batch_size=300", "--set", "ppo.minibatch_size=100", "--set", "resources.num_envs_per_env_runner=4",

@@ -21,8 +21,8 @@ from pydantic import ValidationError
 
 from envs.config import GameConfig
 from league import evaluate, export, report, run, status
-from league.run_dir import LOCK_FILE, usable_checkpoints
-from league.store import DB_NAME, TABLES, LeagueStore
+from league.state.run_dir import LOCK_FILE, usable_checkpoints
+from league.state.store import DB_NAME, TABLES, LeagueStore
 
 TINY = """
 name: tiny

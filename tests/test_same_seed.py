@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from league.run_dir import run_differences
+from league.state.run_dir import run_differences
 
 # The smoke league at a tiny budget: two phases of a few iterations, with learning curves and
 # a checkpoint after every iteration (a kill lands anywhere in one).

@@ -1,4 +1,4 @@
-"""Who wins, win rates (with Wilson intervals) and ratings from game outcomes (rows of ``league.store``).
+"""Who wins, win rates (with Wilson intervals) and ratings from game outcomes (rows of ``league.state.store``).
 
 The one home of "who won": ``ATTACKER_WINS`` (the outcome labels the attacker wins, from
 ``envs.agents.Outcome.attacker_wins``) and the flip to one side's point of view

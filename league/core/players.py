@@ -1,6 +1,6 @@
 """League members: who they are, which side they play, which RLModules play for them.
 
-A player is a row of the ``players`` table (``league.store``); its module ids are
+A player is a row of the ``players`` table (``league.state.store``); its module ids are
 derived from its columns, never parsed back from names.
 
 | kind       | what it is                                             | trained |

@@ -28,7 +28,7 @@ from pathlib import Path
 from filelock import FileLock, Timeout
 
 from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, changed_keys, config_hash, saved_run_config
-from league.store import DB_NAME, DamagedStoreError, LeagueStore
+from league.state.store import DB_NAME, DamagedStoreError, LeagueStore
 
 LOCK_FILE = "run.lock"
 MANIFEST_FILE = "league_manifest.json"
