@@ -35,8 +35,8 @@ from pathlib import Path
 import yaml
 
 from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, load_config
-from league.coordinator import Coordinator, phase_count
-from league.progress import ProgressReporter
+from league.training.coordinator import Coordinator, phase_count
+from league.training.progress import ProgressReporter
 from league.state.run_dir import (
     LOCK_FILE,
     RunDirError,
@@ -49,7 +49,7 @@ from league.state.run_dir import (
     restore_damaged_database,
     usable_checkpoints,
 )
-from league.stop import StopRequests, Stopped
+from league.training.stop import StopRequests, Stopped
 from league.state.store import DB_NAME, LeagueStore
 
 

@@ -11,7 +11,7 @@
 
 A side's pool holds its exploiters' snapshots too (``league.exploiters``); the exploiters
 themselves play in their side's phases against the other side's newest snapshots only,
-and their games do not count in ``PhaseState`` (``league.coordinator``).
+and their games do not count in ``PhaseState`` (``league.training.coordinator``).
 
 ``PhaseState`` is a phase's progress, kept by the coordinator in its resume state.
 """

@@ -40,10 +40,10 @@ from league.head_to_head import EvaluationPool, PairEvaluation, evaluate_pairs, 
 from league.core.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
 from league.core.pfsp import pfsp_probabilities
 from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
-from league.progress import IterationTiming, ProgressReporter
+from league.training.progress import IterationTiming, ProgressReporter
 from league.state.run_dir import record_config, write_manifest
 from league.core.schedule import PhaseState, schedule_of
-from league.stop import StopRequests
+from league.training.stop import StopRequests
 from league.state.store import DB_NAME, LeagueStore
 
 CHECKPOINTS_KEPT = 2
