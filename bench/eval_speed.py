@@ -24,7 +24,7 @@ from envs.rllib_env import TargetDefenseMultiAgentEnv
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import PAPER_TEAM, act_from_state
 from league.config import RunConfig, saved_run_config
-from league.head_to_head import EvaluationPool, evaluate_pairs, load_module
+from league.evaluation.engine import EvaluationPool, evaluate_pairs, load_module
 from league.state.store import LeagueStore
 
 

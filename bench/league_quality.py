@@ -39,7 +39,7 @@ import numpy as np
 
 from envs.scenarios import evaluation_scenarios
 from league.exploitability import exploitability
-from league.head_to_head import play_fixed_games, policies_of
+from league.evaluation.engine import play_fixed_games, policies_of
 from league.core.payoff import wilson_interval
 from league.core.players import Player
 from league.reproduce import finished, train_run

@@ -33,7 +33,7 @@ from envs.scenarios import evaluation_scenarios
 from envs.observations import split_policy_input
 from envs.scripted import ScriptedPlayer
 from league.config import RunConfig, load_config
-from league.head_to_head import LearnedAgent
+from league.evaluation.engine import LearnedAgent
 from league.core.payoff import attacker_won, wilson_interval
 from league.core.players import Player
 from league.rllib.bridge import MatchPlan, build_config, episode_outcomes, set_trainable

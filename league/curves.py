@@ -44,7 +44,7 @@ import numpy as np
 from envs.match import GameResults
 from envs.scripted import PLAYERS
 from league.config import RunConfig
-from league.head_to_head import evaluate_pair, load_module
+from league.evaluation.engine import evaluate_pair, load_module
 from league.core.payoff import wilson_interval
 from league.core.players import Player
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import torch
 
-from league.head_to_head import PairEvaluation, evaluate_pairs, format_table
+from league.evaluation.engine import PairEvaluation, evaluate_pairs, format_table
 from league.nash import format_meta_game, meta_game, meta_game_players
 from league.core.payoff import league_ratings, wilson_interval
 from league.core.players import Player

@@ -81,7 +81,7 @@ def resolve_player(store: LeagueStore, spec: str) -> Player:
 
 def load_policy(run_dir: Path, player: Player) -> tuple[nn.Module, Any]:
     """The player's RLModule, with a clear error for a missing or unreadable checkpoint."""
-    from league.head_to_head import load_module
+    from league.evaluation.engine import load_module
 
     path = run_dir / (player.checkpoint or "")
     try:

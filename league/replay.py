@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from envs.render import plot_episode
     from league import report_html
-    from league.head_to_head import agents_of
+    from league.evaluation.engine import agents_of
     from league.report import Episode
 
     torch.set_num_threads(run.resources.threads_for(1))

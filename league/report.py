@@ -40,7 +40,7 @@ from league.config import RunConfig, saved_run_config
 from league.curves import Curve, plot_run, read_curves
 from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability
 from league.generations import GenerationLine, generation_lines, generations_plot
-from league.head_to_head import agents_of, evaluate_pairs
+from league.evaluation.engine import agents_of, evaluate_pairs
 from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
 from league.core.payoff import aggregate, attacker_won, league_ratings, wilson_interval, wins_of
 from league.core.players import POOL_KINDS, Player

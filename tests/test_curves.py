@@ -9,7 +9,7 @@ from envs.match import play, scripted_players
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig
 from league.curves import GameStats, LearningCurves, main as curves_main, plot_run, read_curves
-from league.head_to_head import agents_of
+from league.evaluation.engine import agents_of
 from league.core.players import Player
 from league.state.run_dir import open_run
 from league.state.store import LeagueStore

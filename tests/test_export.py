@@ -15,7 +15,7 @@ from envs.config import GameConfig
 from envs.match import play, scripted_players
 from envs.scenarios import evaluation_scenarios
 from league.export import main as export_main
-from league.head_to_head import LearnedAgent, load_module
+from league.evaluation.engine import LearnedAgent, load_module
 
 REPO = Path(__file__).resolve().parent.parent
 

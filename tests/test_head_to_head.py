@@ -11,7 +11,7 @@ from envs.scenarios import evaluation_scenarios
 from envs.scripted import PLAYERS, ScriptedPlayer
 from league.config import load_config
 from league.evaluate import main as evaluate_main
-from league.head_to_head import LearnedAgent, deterministic, evaluate_pairs, play_fixed_games
+from league.evaluation.engine import LearnedAgent, deterministic, evaluate_pairs, play_fixed_games
 from league.rllib.bridge import learner_spec
 from league.rollout.games import ScriptedOnState
 from league.core.players import Player

@@ -101,7 +101,7 @@ def test_snapshots_carry_the_learners_weights_into_sampling_files_and_checkpoint
     import numpy as np
     from ray.rllib.algorithms.algorithm import Algorithm
 
-    from league.head_to_head import load_module
+    from league.evaluation.engine import load_module
     from league.rllib.bridge import add_snapshot, learner_weights, save_module
 
     run = RunConfig(name="wiring", ppo={"hidden": [16]})

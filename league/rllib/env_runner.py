@@ -303,7 +303,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         """Every agent's action in every game: one forward pass per module.
 
         With ``on_core``, scripted players act on the games' exact state, as in evaluation
-        (``league.head_to_head``), rather than on the float32 global state their module reads.
+        (``league.evaluation.engine``), rather than on the float32 global state their module reads.
         """
         if random_actions:
             actions = {}

@@ -16,7 +16,7 @@ by a ``ModuleAct`` (observations in, actions and per-row outputs out: a network'
 pass) or, for scripted players, by ``ScriptedOnState`` (they act on the games' exact state).
 
 Used by the RLlib env runner (``league.rllib.env_runner``, which turns the rows into
-episodes or PPO's training batch), by evaluation (``league.head_to_head``: frozen players on
+episodes or PPO's training batch), by evaluation (``league.evaluation.engine``: frozen players on
 the fixed games) and by the plain-PyTorch PPO bench (``bench/plain_ppo.py``);
 ``tests/test_rollout.py`` runs it without Ray.
 """

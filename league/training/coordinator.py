@@ -36,7 +36,7 @@ from league.rllib import bridge
 from league.config import RunConfig
 from league.curves import LearningCurves, Measurements
 from league.evaluate import method_table
-from league.head_to_head import EvaluationPool, PairEvaluation, evaluate_pairs, format_table
+from league.evaluation.engine import EvaluationPool, PairEvaluation, evaluate_pairs, format_table
 from league.core.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
 from league.core.pfsp import pfsp_probabilities
 from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side

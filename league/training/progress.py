@@ -24,7 +24,7 @@ from tensorboardX import SummaryWriter
 
 if TYPE_CHECKING:
     from league.core.schedule import PhaseState
-    from league.head_to_head import PairEvaluation
+    from league.evaluation.engine import PairEvaluation
 
 TRAIN_METRICS = ("policy_loss", "vf_loss", "entropy", "mean_kl_loss")
 
