@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from envs.scenarios import evaluation_scenarios
-from league.exploitability import exploitability
+from league.analysis.exploitability import exploitability
 from league.evaluation.engine import play_fixed_games, policies_of
 from league.core.payoff import wilson_interval
 from league.core.players import Player

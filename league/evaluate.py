@@ -3,7 +3,7 @@
 Plays every chosen attacker against every chosen team on the fixed evaluation games
 (frozen players only: snapshots, exploiter snapshots and scripted players), prints win
 rates with 95% Wilson intervals and outcome counts, the table per attacker reward method, then the Nash
-equilibrium of the meta-game on these results (``league.nash``). Results go to
+equilibrium of the meta-game on these results (``league.analysis.nash``). Results go to
 the league database as evaluation results of the run's last iteration, replacing earlier
 evaluations of the same pairs (the same fixed games again are one measurement, not new
 evidence), and the ratings of that iteration are refitted with them.
@@ -21,7 +21,7 @@ from pathlib import Path
 import torch
 
 from league.evaluation.engine import PairEvaluation, evaluate_pairs, format_table
-from league.nash import format_meta_game, meta_game, meta_game_players
+from league.analysis.nash import format_meta_game, meta_game, meta_game_players
 from league.core.payoff import league_ratings, wilson_interval
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run

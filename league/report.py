@@ -1,8 +1,8 @@
 """A run's report: ``python -m league.report --run-dir DIR`` writes ``DIR/report/``.
 
 * ``report.md`` with PNGs: the Table 1 analogue next to the paper's numbers, the payoff
-  matrix and its meta-game (Nash mixtures and value, ``league.nash``), every snapshot against
-  the scripted players of the other side by version (``league.generations``), the exploitability of
+  matrix and its meta-game (Nash mixtures and value, ``league.analysis.nash``), every snapshot against
+  the scripted players of the other side by version (``league.analysis.generations``), the exploitability of
   the players ``league.exploit`` trained best responses against, ratings over training (one panel per side) and a table of every player's
   Elo and Nash-averaged rating, learner win rates and episode returns in the iterations their side learned
   (phases shaded; a line breaks between a learner's phases), and 3D trajectories of a won and a lost game
@@ -38,10 +38,10 @@ from envs.render import plot_episode
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig, saved_run_config
 from league.curves import Curve, plot_run, read_curves
-from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability
-from league.generations import GenerationLine, generation_lines, generations_plot
+from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability
+from league.analysis.generations import GenerationLine, generation_lines, generations_plot
 from league.evaluation.engine import agents_of, evaluate_pairs
-from league.nash import MetaGame, format_meta_game, meta_game, meta_game_players
+from league.analysis.nash import MetaGame, format_meta_game, meta_game, meta_game_players
 from league.core.payoff import aggregate, attacker_won, league_ratings, wilson_interval, wins_of
 from league.core.players import POOL_KINDS, Player
 from league.state.run_dir import RunDirError, open_run

@@ -18,9 +18,9 @@ from plotly.offline import get_plotlyjs
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.render import COLOURS
 from league.curves import quantities, reference_colour
-from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
-from league.generations import generations_figure
-from league.nash import META_GAME_NOTE, MIXTURE_HEADER
+from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
+from league.analysis.generations import generations_figure
+from league.analysis.nash import META_GAME_NOTE, MIXTURE_HEADER
 from league.core.players import POOL_KINDS
 from league.report import (
     CURVES_NOTE,

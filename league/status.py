@@ -13,8 +13,8 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from league.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability
-from league.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_game
+from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability
+from league.analysis.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_game
 from league.core.payoff import aggregate, player_record
 from league.state.run_dir import RunDirError, open_run, usable_checkpoints
 from league.state.store import LeagueStore

@@ -6,7 +6,7 @@ import pytest
 from PIL import Image
 
 from league.config import saved_run_config
-from league.generations import generation_lines, generations_figure, generations_plot
+from league.analysis.generations import generation_lines, generations_figure, generations_plot
 from league.core.players import Player
 from league.report import build_report, gather
 from league.state.store import LeagueStore

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from league.nash import SUPPORT_THRESHOLD, format_meta_game, meta_game, solve_zero_sum
+from league.analysis.nash import SUPPORT_THRESHOLD, format_meta_game, meta_game, solve_zero_sum
 from league.core.players import Player
 
 # HiGHS solves to feasibility tolerances of 1e-7, and weights below SUPPORT_THRESHOLD (1e-6)
