@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     from envs.render import plot_episode
-    from league import report_html
+    from league.reports import html as report_html
     from league.evaluation.engine import agents_of
     from league.report import Episode
 

@@ -10,7 +10,7 @@
   (``league.curves``: win rate and return over env steps, with reference lines).
 * ``index.html``: the same content in one self-contained file (plotly's JavaScript
   inside, so it opens offline), with the trajectories as 3D scenes to rotate, zoom and
-  step through (``league.report_html``).
+  step through (``league.reports.html``).
 
 Evaluation numbers are each pair's newest evaluation in the league database (a pair
 played again on the same fixed games is one measurement, not more evidence); a pair the
@@ -400,7 +400,7 @@ def ratings_figure(data: ReportData):
 
 # ---------------------------------------------------------------- the report
 def build_report(run_dir: Path) -> Path:
-    from league import report_html
+    from league.reports import html as report_html
 
     import torch
 

@@ -13,7 +13,7 @@ from league.evaluate import main as evaluate_main
 from league.core.payoff import wilson_interval
 from league.core.payoff import ATTACKER_WINS, aggregate
 from league.report import build_report
-from league.report_html import AGENT_COLOURS
+from league.reports.html import AGENT_COLOURS
 from league.state.store import LeagueStore
 
 
