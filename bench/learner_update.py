@@ -33,7 +33,9 @@ import torch
 
 from league.config import load_config
 from league.core.players import Player
-from league.rllib.bridge import MatchPlan, build_config, minibatch_size, set_trainable, training_batch
+from league.core.match_plan import MatchPlan
+from league.rllib.algorithm import minibatch_size, training_batch
+from league.rllib.bridge import build_config, set_trainable
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.utils.metrics import NUM_ENV_STEPS_SAMPLED_LIFETIME, NUM_MODULE_STEPS_TRAINED_LIFETIME
 

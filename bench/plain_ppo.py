@@ -2,7 +2,7 @@
 
 CleanRL-style, one file, no Ray: the config's attacker against its first scripted team,
 played by ``league.rollout.games`` (the games and step loop of the fast sampler), with the network, batch,
-minibatch, epochs and loss of ``league.rllib.bridge``'s PPO: a Gaussian policy with a
+minibatch, epochs and loss of the league's PPO (``league.rllib``): a Gaussian policy with a
 state-independent log-std and a separate value network (``league.rllib.modules.mlp``), GAE
 (``league.rollout.train_batch``), standardised advantages, the clipped surrogate, the value
 loss, the entropy bonus and RLlib's adaptive KL penalty (coefficient 0.2, target 0.01),

@@ -36,7 +36,8 @@ from league.config import RunConfig, load_config
 from league.evaluation.engine import LearnedAgent
 from league.core.payoff import attacker_won, wilson_interval
 from league.core.players import Player
-from league.rllib.bridge import MatchPlan, build_config, episode_outcomes, set_trainable
+from league.core.match_plan import MatchPlan
+from league.rllib.bridge import build_config, episode_outcomes, set_trainable
 
 from plain_ppo import train_plain  # bench/ beside this file
 

@@ -10,7 +10,8 @@ from envs.agents import AGENTS
 from league.rllib.env_runner import BatchedEnvRunner
 from league.config import RunConfig
 from league.core.players import Player
-from league.rllib.bridge import MatchPlan, build_config, episode_outcomes, set_trainable
+from league.core.match_plan import MatchPlan
+from league.rllib.bridge import build_config, episode_outcomes, set_trainable
 from ray.rllib.core.columns import Columns
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 

@@ -10,9 +10,9 @@ from league.config import RunConfig
 from league.core.players import Player
 from envs.agents import Outcome
 from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
-from league.rllib.bridge import (
-    MINIBATCH_SIZES, LeaguePPO, MatchPlan, build_config, episode_outcomes, set_trainable, training_batch,
-)
+from league.core.match_plan import MatchPlan
+from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO, training_batch
+from league.rllib.bridge import build_config, episode_outcomes, set_trainable
 from league.rollout.train_batch import gae, minibatch_rows, potential_shaping
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
@@ -172,7 +172,7 @@ def gradient_steps(algo, module_id: str) -> int:
 
 def test_an_exploiter_learns_in_its_sides_minibatches():
     # A team exploiter trains in the same update as the team learner: a different minibatch
-    # size would stop that update (`rllib_bridge.minibatch_size`).
+    # size would stop that update (`league.rllib.algorithm.minibatch_size`).
     run = RunConfig(**{**RUN.model_dump(), "ppo": {**RUN.ppo.model_dump(), "minibatch_counts": "env_steps"}})
     exploiter = Player(id=4, side="team", kind="exploiter", version=0)
     plan = MatchPlan([{"attacker": ATTACKER.name}], [[TEAM.modules()]], [[1.0]], seed=0)

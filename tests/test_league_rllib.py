@@ -7,7 +7,8 @@ import ray
 
 from league.config import RunConfig
 from league.core.players import Player
-from league.rllib.bridge import MatchPlan, build_config, learner_env_steps, episode_outcomes, set_match_plan, set_trainable
+from league.core.match_plan import MatchPlan
+from league.rllib.bridge import build_config, learner_env_steps, episode_outcomes, set_match_plan, set_trainable
 
 
 def trained(result, module):
@@ -76,7 +77,7 @@ def test_reward_connector_pays_each_attacker_module_its_own_method(algo):
 
     import numpy as np
 
-    from league.rllib.bridge import AttackerRewardByMethod
+    from league.rllib.callbacks import AttackerRewardByMethod
     from ray.rllib.connectors.learner.add_one_ts_to_episodes_and_truncate import AddOneTsToEpisodesAndTruncate
 
     episodes = algo.env_runner.sample(num_episodes=3, random_actions=True, force_reset=True)

@@ -10,7 +10,8 @@ from envs.agents import Outcome
 from league.core.payoff import ATTACKER_WINS, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
 from league.core.players import Player
 from league.core.pfsp import pfsp_probabilities
-from league.rllib.bridge import MatchPlan, learner_spec
+from league.core.match_plan import MatchPlan
+from league.rllib.bridge import learner_spec
 from league.run import main as run_main
 from league.state.store import LeagueStore
 from ray.rllib.core.columns import Columns

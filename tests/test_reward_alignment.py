@@ -18,7 +18,8 @@ import torch
 from envs.core import BatchedGame
 from league.config import RunConfig
 from league.core.players import Player
-from league.rllib.bridge import MatchPlan, build_config, set_trainable
+from league.core.match_plan import MatchPlan
+from league.rllib.bridge import build_config, set_trainable
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate
 from ray.rllib.core.columns import Columns
 from ray.rllib.evaluation.postprocessing import Postprocessing

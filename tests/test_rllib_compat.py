@@ -1,8 +1,8 @@
 """RLlib behind one adapter: internals only in ``league.rllib.compat``, pinned to the Ray version.
 
 ``league/rllib/compat.py`` holds every read or write of RLlib's private attributes and
-episode internals; ``league/rllib/bridge.py`` (the adapter) every checkpoint load and
-every parse of ``train()`` results. The scans below check the source tree for that, and
+episode internals; ``league/rllib/bridge.py`` (the adapter) and ``league/rllib/algorithm.py``
+(its algorithm) every checkpoint load and every parse of ``train()`` results. The scans below check the source tree for that, and
 each is shown to find a planted violation.
 """
 
@@ -20,9 +20,11 @@ from league.rllib import compat as rllib_compat
 from test_layering import ROOT, plant, source_files
 
 COMPAT = "league/rllib/compat.py"
-ADAPTER = "league/rllib/bridge.py"
+ADAPTER = {"league/rllib/bridge.py", "league/rllib/algorithm.py"}  # the adapter and its algorithm
 # Modules whose classes subclass RLlib's (EnvRunner, Algorithm, Learner, RLModule, callbacks, connectors).
-RLLIB_SUBCLASSING = ("league.rllib.env_runner", "league.rllib.bridge", "league.rllib.modules")
+RLLIB_SUBCLASSING = (
+    "league.rllib.env_runner", "league.rllib.algorithm", "league.rllib.learner", "league.rllib.callbacks", "league.rllib.modules",
+)
 # Writes of a MultiAgentEpisode's internals (what RLlib's add_env_step keeps consistent), on
 # the names our code gives episodes.
 EPISODE_INTERNALS = re.compile(
@@ -69,7 +71,7 @@ def test_no_episode_internals_written_outside_the_compat_module():
 
 
 def test_checkpoints_and_learner_results_only_in_the_adapter():
-    assert scan(ROOT, lambda text: CHECKPOINTS_AND_RESULTS.findall(text), {ADAPTER, COMPAT}) == {}
+    assert scan(ROOT, lambda text: CHECKPOINTS_AND_RESULTS.findall(text), {*ADAPTER, COMPAT}) == {}
 
 
 def rllib_private_names(cls: type) -> set[str]:
@@ -114,7 +116,7 @@ def test_the_scans_find_planted_violations(tmp_path):
     })
     assert scan(root, foreign_private_attributes, {COMPAT}) == {"league/runner.py": ["config._env_to_module_connector (line 1)"]}
     assert scan(root, lambda text: EPISODE_INTERNALS.findall(text), {COMPAT}) == {"league/chunk.py": ["env_t", "is_terminated"]}
-    assert scan(root, lambda text: CHECKPOINTS_AND_RESULTS.findall(text), {ADAPTER, COMPAT}) == {
+    assert scan(root, lambda text: CHECKPOINTS_AND_RESULTS.findall(text), {*ADAPTER, COMPAT}) == {
         "league/run.py": ["from_checkpoint", "['learners']"]
     }
 

@@ -82,14 +82,17 @@ class Player:
             "targeter": self.scripted_targeter, "defender": self.scripted_defender
         } == PAPER_TEAM
 
+    def scripted_players(self) -> dict[str, str]:
+        """``envs.scripted`` player name per agent of a scripted player's side (from its columns)."""
+        if self.kind != "scripted":
+            raise ValueError(f"{self.name} is not a scripted player")
+        if self.side == "attacker":
+            return {"attacker": self.scripted_attacker}
+        return {"targeter": self.scripted_targeter, "defender": self.scripted_defender}
+
     def modules(self) -> dict[str, str]:
         """Module id per agent for the agents of this player's side."""
         if self.kind == "scripted":
-            if self.side == "attacker":
-                return {"attacker": f"scripted-attacker-{self.scripted_attacker}"}
-            return {
-                "targeter": f"scripted-targeter-{self.scripted_targeter}",
-                "defender": f"scripted-defender-{self.scripted_defender}",
-            }
+            return {agent: f"scripted-{agent}-{name}" for agent, name in self.scripted_players().items()}
         agents = ("attacker",) if self.side == "attacker" else ("targeter", "defender")
         return {agent: self.name for agent in agents}

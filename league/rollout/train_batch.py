@@ -21,7 +21,7 @@ only (RLlib also counts the extra bootstrap step it appends to every chunk, whos
 advantage is 0), as CleanRL's PPO does. ``tests/test_fast_path.py`` checks the two.
 
 ``minibatch_rows`` is the order in which RLlib's Learner passes over such a batch, for a
-Learner that slices the arrays itself (``league.rllib.bridge.LeaguePPOLearner``).
+Learner that slices the arrays itself (``league.rllib.learner.LeaguePPOLearner``).
 """
 
 from __future__ import annotations

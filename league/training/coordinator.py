@@ -38,6 +38,7 @@ from league.curves import LearningCurves, Measurements
 from league.evaluate import method_table
 from league.evaluation.engine import EvaluationPool, PairEvaluation, evaluate_pairs, format_table
 from league.core.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
+from league.core.match_plan import MatchPlan
 from league.core.pfsp import pfsp_probabilities
 from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
 from league.training.progress import IterationTiming, ProgressReporter
@@ -113,7 +114,7 @@ class Coordinator:
         state = RunState(phase=PhaseState(index=0, side=schedule_of(run).side(0), start_iteration=0))
         first_attacker = store.players(side="attacker", kind="learner")[0]
         first_team = store.players(side="team", kind="scripted")[0]
-        plan = bridge.MatchPlan([first_attacker.modules()], [[first_team.modules()]], [[1.0]], run.seed)
+        plan = MatchPlan([first_attacker.modules()], [[first_team.modules()]], [[1.0]], run.seed)
         algo = bridge.build_config(run, store.players(), plan).build_algo()
         check()
         coordinator = cls(run, run_dir, store, algo, state, seed=run.seed)
@@ -177,7 +178,7 @@ class Coordinator:
         table = aggregate(self.store.outcome_rows("training"))
         return [win_rate(*record_against(table, learner.side, learner.id, opponent.id)) for opponent in opponents]
 
-    def match_plan(self) -> tuple[bridge.MatchPlan, dict[str, dict[str, float]]]:
+    def match_plan(self) -> tuple[MatchPlan, dict[str, dict[str, float]]]:
         """This iteration's plan, and each learner's PFSP probability per opponent name.
 
         The side's exploiters join the plan as further entries with the other side's current
@@ -190,7 +191,7 @@ class Coordinator:
         ]
         exploiters = self.exploiters(side)
         targets = self.current_opponents(side) if exploiters else []
-        plan = bridge.MatchPlan(
+        plan = MatchPlan(
             learners=[player.modules() for player in learners + exploiters],
             opponents=[[o.modules() for o in opponents]] * len(learners) + [[t.modules() for t in targets]] * len(exploiters),
             probabilities=[p.tolist() for p in probabilities] + [[1.0] * len(targets)] * len(exploiters),
