@@ -40,7 +40,7 @@ import numpy as np
 from envs.scenarios import evaluation_scenarios
 from league.analysis.exploitability import exploitability
 from league.evaluation.engine import play_fixed_games, policies_of
-from league.core.payoff import wilson_interval
+from league.analysis.statistics import wilson_interval
 from league.core.players import Player
 from league.reproduce import finished, train_run
 from league.state.run_dir import open_run

@@ -18,7 +18,8 @@ import sys
 import time
 from pathlib import Path
 
-from league.core.payoff import aggregate, wilson_interval
+from league.analysis.statistics import wilson_interval
+from league.core.payoff import aggregate
 from league.state.store import LeagueStore
 
 

@@ -34,7 +34,8 @@ from envs.observations import split_policy_input
 from envs.scripted import ScriptedPlayer
 from league.config import RunConfig, load_config
 from league.evaluation.engine import LearnedAgent
-from league.core.payoff import attacker_won, wilson_interval
+from league.analysis.statistics import wilson_interval
+from league.core.payoff import attacker_won
 from league.core.players import Player
 from league.core.match_plan import MatchPlan
 from league.rllib.bridge import build_config, episode_outcomes, set_trainable

@@ -45,7 +45,7 @@ from envs.match import GameResults
 from envs.scripted import PLAYERS
 from league.config import RunConfig
 from league.evaluation.engine import evaluate_pair, load_module
-from league.core.payoff import wilson_interval
+from league.analysis.statistics import wilson_interval
 from league.core.players import Player
 
 # Where a live learner's module is "loaded" from: it comes from the algorithm, not the disk.

@@ -22,7 +22,8 @@ import torch
 
 from league.evaluation.engine import PairEvaluation, evaluate_pairs, format_table
 from league.analysis.nash import format_meta_game, meta_game, meta_game_players
-from league.core.payoff import league_ratings, wilson_interval
+from league.analysis.statistics import wilson_interval
+from league.core.payoff import league_ratings
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
 

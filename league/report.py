@@ -42,7 +42,8 @@ from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY
 from league.analysis.generations import GenerationLine, generation_lines, generations_plot
 from league.evaluation.engine import agents_of, evaluate_pairs
 from league.analysis.nash import MetaGame, format_meta_game, meta_game, meta_game_players
-from league.core.payoff import aggregate, attacker_won, league_ratings, wilson_interval, wins_of
+from league.analysis.statistics import wilson_interval
+from league.core.payoff import aggregate, attacker_won, league_ratings, wins_of
 from league.core.players import POOL_KINDS, Player
 from league.state.run_dir import RunDirError, open_run
 from league.state.store import LeagueStore

@@ -40,21 +40,11 @@ from pathlib import Path
 
 import numpy as np
 
+from league.analysis.statistics import bootstrap_interval
 from league.core.payoff import aggregate
 from league.report import PAPER_TABLE_1
 from league.state.run_dir import RunDirError, lock_run
 from league.state.store import LeagueStore
-
-BOOTSTRAP_SAMPLES = 10_000
-
-
-def bootstrap_interval(values: list[float], seed: int = 0) -> tuple[float, float]:
-    """95% percentile interval of the mean over resampled seeds."""
-    rng = np.random.default_rng(seed)
-    data = np.asarray(values)
-    means = data[rng.integers(0, len(data), size=(BOOTSTRAP_SAMPLES, len(data)))].mean(axis=1)
-    return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
-
 
 def attacker_win_rate(run_dir: Path, method: int) -> tuple[float, int]:
     """Evaluation win rate of ``attacker-m{method}-v1`` against the paper's scripted team."""

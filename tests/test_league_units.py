@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from league.config import CONFIG_DIR, ConfigError, RunConfig, load_config
-from league.core.payoff import wilson_interval
+from league.analysis.statistics import wilson_interval
 from envs.agents import Outcome
 from league.core.payoff import ATTACKER_WINS, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
 from league.core.players import Player
@@ -273,7 +273,7 @@ def test_reproduce_reads_the_newest_evaluation_of_the_paper_team(tmp_path):
 
 
 def test_bootstrap_interval_over_seeds():
-    from league.reproduce import bootstrap_interval
+    from league.analysis.statistics import bootstrap_interval
 
     assert bootstrap_interval([0.4, 0.4, 0.4]) == pytest.approx((0.4, 0.4))
     low, high = bootstrap_interval([0.2, 0.5, 0.8])

@@ -10,7 +10,7 @@ from PIL import Image
 from envs.agents import ATTACKER, DEFENDER
 from league.browser_check import check_page, find_chromium
 from league.evaluate import main as evaluate_main
-from league.core.payoff import wilson_interval
+from league.analysis.statistics import wilson_interval
 from league.core.payoff import ATTACKER_WINS, aggregate
 from league.report import build_report
 from league.reports.html import AGENT_COLOURS

@@ -20,7 +20,7 @@ import matplotlib.pyplot as plt
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from league.core.payoff import wilson_interval
+from league.analysis.statistics import wilson_interval
 from league.core.players import Player
 
 SIDES = ("attacker", "team")

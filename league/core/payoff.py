@@ -1,4 +1,4 @@
-"""Who wins, win rates (with Wilson intervals) and ratings from game outcomes (rows of ``league.state.store``).
+"""Who wins, win rates and ratings from game outcomes (rows of ``league.state.store``).
 
 The one home of "who won": ``ATTACKER_WINS`` (the outcome labels the attacker wins, from
 ``envs.agents.Outcome.attacker_wins``) and the flip to one side's point of view
@@ -13,7 +13,6 @@ than the prior's 1000, which would read as a measured average).
 
 from __future__ import annotations
 
-import math
 from collections import defaultdict
 
 import numpy as np
@@ -110,17 +109,3 @@ def league_ratings(outcome_rows: list[tuple[int, int, str, int]], players: list[
     """Ratings from ``(attacker, team, outcome, count)`` rows (``LeagueStore.outcome_rows``)."""
     table = aggregate(outcome_rows)
     return elo_ratings([(a, t, w, n) for (a, t), (w, n) in table.items()], players)
-
-
-Z_95 = 1.959963984540054
-
-
-def wilson_interval(wins: int, games: int, z: float = Z_95) -> tuple[float, float]:
-    """95% Wilson score interval of a win rate."""
-    if games == 0:
-        return (0.0, 1.0)
-    p = wins / games
-    denom = 1 + z * z / games
-    centre = (p + z * z / (2 * games)) / denom
-    half = z * math.sqrt(p * (1 - p) / games + z * z / (4 * games * games)) / denom
-    return (max(0.0, centre - half), min(1.0, centre + half))

@@ -28,7 +28,7 @@ from envs.observations import policy_input
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import ScriptedPlayer
 from envs.vector_env import TargetDefenseVectorEnv
-from league.core.payoff import wilson_interval
+from league.analysis.statistics import wilson_interval
 from league.core.players import Player
 from league.rollout.games import ModuleAct, Policy, Rollout, ScriptedOnState
 
