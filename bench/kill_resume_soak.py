@@ -90,7 +90,7 @@ def check(run_dir: Path) -> list[str]:
         integrity = store.integrity_check()
         numbers = [row["iteration"] for row in store.iteration_rows()]
         episodes = store.last_iteration()["episodes"]
-        matches = sum(count for *_, count in store.outcome_rows("training"))
+        matches = sum(row.count for row in store.outcome_rows("training"))
         snapshots = [(p.side, p.reward_method or 0, p.version, p.checkpoint) for p in store.players(kind="snapshot")]
     finally:
         store.close()

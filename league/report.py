@@ -43,7 +43,7 @@ from league.analysis.generations import GenerationLine, generation_lines, genera
 from league.evaluation.engine import agents_of, evaluate_pairs
 from league.analysis.nash import MetaGame, format_meta_game, meta_game, meta_game_players
 from league.analysis.statistics import wilson_interval
-from league.core.payoff import aggregate, attacker_won, league_ratings, wins_of
+from league.core.payoff import aggregate, league_ratings, wins_of
 from league.core.players import POOL_KINDS, Player
 from league.state.run_dir import RunDirError, open_run
 from league.state.store import LeagueStore
@@ -124,12 +124,12 @@ def learner_win_rates(store: LeagueStore, players: list[Player]) -> Series:
     """Each learner's win rate over its training episodes, per iteration it played."""
     learners = {p.id: p for p in players if p.trains}
     counts: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0])
-    for iteration, attacker, team, outcome, n in store.training_rows_by_iteration():
-        for pid in (attacker, team):
+    for iteration, row in store.training_rows_by_iteration():
+        for pid in (row.attacker, row.team):
             if pid in learners:
                 entry = counts[(learners[pid].name, iteration)]
-                entry[1] += n
-                entry[0] += wins_of(learners[pid].side, n if attacker_won(outcome) else 0, n)
+                entry[1] += row.count
+                entry[0] += row.wins(learners[pid].side)
     series: Series = defaultdict(lambda: ([], []))
     for (name, iteration), (wins, games) in sorted(counts.items(), key=lambda kv: kv[0][1]):
         series[name][0].append(iteration)

@@ -7,7 +7,7 @@ import torch
 from league.config import CONFIG_DIR, ConfigError, RunConfig, load_config
 from league.analysis.statistics import wilson_interval
 from envs.agents import Outcome
-from league.core.payoff import ATTACKER_WINS, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
+from league.core.payoff import ATTACKER_WINS, OutcomeCount, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
 from league.core.players import Player
 from league.core.pfsp import pfsp_probabilities
 from league.core.match_plan import MatchPlan
@@ -153,7 +153,9 @@ def test_who_wins_each_outcome_and_from_which_side():
     assert ATTACKER_WINS == {"captured", "timeout"}
     assert [attacker_won(o.label) for o in Outcome if o != Outcome.RUNNING] == [True, True, False, False]
     # attacker 1 vs team 2: 3 captures, 1 timeout, 6 times T reached the terminal
-    rows = [(1, 2, "captured", 3), (1, 2, "timeout", 1), (1, 2, "terminal_reached", 6), (4, 2, "attacker_intercepted", 5)]
+    rows = [OutcomeCount(*row) for row in
+            [(1, 2, "captured", 3), (1, 2, "timeout", 1), (1, 2, "terminal_reached", 6), (4, 2, "attacker_intercepted", 5)]]
+    assert [row.wins("team") for row in rows] == [0, 0, 6, 5]
     table = aggregate(rows)
     assert table == {(1, 2): (4, 10), (4, 2): (0, 5)}
     assert record_against(table, "attacker", 1, 2) == (4, 10)
@@ -244,14 +246,14 @@ def test_rollback_forgets_later_iterations(tmp_path):
         t = store.add_player(0, side="team", kind="learner", version=0)
     for iteration in (1, 2, 3):
         with store.transaction():
-            store.record_outcomes(iteration, "training", [(a.id, t.id, "captured", 2)])
+            store.record_outcomes(iteration, "training", [OutcomeCount(a.id, t.id, "captured", 2)])
             store.record_iteration(iteration, phase=0, learner_side="team", env_steps=iteration, episodes=2 * iteration,
                                    steps_per_second=1.0, wall_seconds=1.0)
             if iteration == 2:
                 store.add_player(iteration, side="team", kind="snapshot", version=1, parent=t.id)
     store.rollback_after(1)
     assert store.iteration_count() == 1
-    assert store.outcome_rows() == [(a.id, t.id, "captured", 2)]
+    assert store.outcome_rows() == [OutcomeCount(a.id, t.id, "captured", 2)]
     assert [p.kind for p in store.players()] == ["scripted", "learner"]
 
 
@@ -265,9 +267,9 @@ def test_reproduce_reads_the_newest_evaluation_of_the_paper_team(tmp_path):
         paper = store.add_player(0, side="team", kind="scripted", version=0, scripted_targeter="avoid_attacker",
                                  scripted_defender="pure_pursuit")
         v1 = store.add_player(0, side="attacker", kind="snapshot", version=1, reward_method=2)
-    store.record_evaluation(1, [(v1.id, paper.id, "captured", 1), (v1.id, paper.id, "terminal_reached", 3)])
-    store.record_evaluation(2, [(v1.id, paper.id, "captured", 3), (v1.id, paper.id, "terminal_reached", 1)])
-    store.record_evaluation(2, [(v1.id, straight.id, "captured", 4)])
+    store.record_evaluation(1, [OutcomeCount(v1.id, paper.id, "captured", 1), OutcomeCount(v1.id, paper.id, "terminal_reached", 3)])
+    store.record_evaluation(2, [OutcomeCount(v1.id, paper.id, "captured", 3), OutcomeCount(v1.id, paper.id, "terminal_reached", 1)])
+    store.record_evaluation(2, [OutcomeCount(v1.id, straight.id, "captured", 4)])
     store.close()
     assert attacker_win_rate(tmp_path, 2) == (0.75, 4)
 

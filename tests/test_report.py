@@ -11,7 +11,7 @@ from envs.agents import ATTACKER, DEFENDER
 from league.browser_check import check_page, find_chromium
 from league.evaluate import main as evaluate_main
 from league.analysis.statistics import wilson_interval
-from league.core.payoff import ATTACKER_WINS, aggregate
+from league.core.payoff import aggregate
 from league.report import build_report
 from league.reports.html import AGENT_COLOURS
 from league.state.store import LeagueStore
@@ -23,8 +23,8 @@ def pair_numbers(run_dir):
     store = LeagueStore(run_dir)
     try:
         frozen = {p.id for p in store.players() if p.kind != "learner"}
-        payoff = aggregate(store.newest_evaluation_rows(), ATTACKER_WINS)
-        counted = aggregate(store.counted_results(), ATTACKER_WINS)
+        payoff = aggregate(store.newest_evaluation_rows())
+        counted = aggregate(store.counted_results())
         return {pair: n for pair, n in payoff.items() if set(pair) <= frozen}, counted, store.latest_ratings()
     finally:
         store.close()

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from league.core.payoff import ATTACKER_WINS, aggregate
+from league.core.payoff import OutcomeCount, aggregate
 from league.core.players import POOL_KINDS, Player
 
 # HiGHS's default primal and dual feasibility tolerances are 1e-7; a weight below ten
@@ -180,10 +180,10 @@ def format_meta_game(meta: MetaGame | None, why_not: str = "") -> str:
     return "\n".join(lines + ["", META_GAME_NOTE]) + "\n"
 
 
-def league_meta_game(players: list[Player], evaluation_rows: list[tuple[int, int, str, int]]) -> tuple[MetaGame | None, str]:
+def league_meta_game(players: list[Player], evaluation_rows: list[OutcomeCount]) -> tuple[MetaGame | None, str]:
     """The meta-game on each pair's newest evaluation (``LeagueStore.newest_evaluation_rows``), or why there is none."""
     attackers, teams = meta_game_players(players)
-    payoff = aggregate(evaluation_rows, ATTACKER_WINS)
+    payoff = aggregate(evaluation_rows)
     missing = missing_pairs(attackers, teams, payoff)
     if missing:
         return None, (f"{len(missing)} of {len(attackers) * len(teams)} pairs of frozen players not evaluated yet "

@@ -2,7 +2,8 @@
 
 The one home of "who won": ``ATTACKER_WINS`` (the outcome labels the attacker wins, from
 ``envs.agents.Outcome.attacker_wins``) and the flip to one side's point of view
-(``wins_of``, ``record_against``); every other module asks these.
+(``wins_of``, ``record_against``, ``winner``); every other module asks these. Results travel
+as ``OutcomeCount`` rows, the store's ``matches`` table grouped by pair and outcome.
 
 A pair never played counts as an even match (win rate 0.5), as in AlphaStar.
 Ratings are Elo-scaled Bradley-Terry strengths fitted to all results so far:
@@ -14,6 +15,7 @@ than the prior's 1000, which would read as a measured average).
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -37,12 +39,36 @@ def attacker_won(outcome: str) -> bool:
     return outcome in ATTACKER_WINS
 
 
+def winner(outcome: str) -> str:
+    """The side (``attacker`` or ``team``) that won a game ended with the ``Outcome`` label ``outcome``."""
+    return "attacker" if attacker_won(outcome) else "team"
+
+
 def wins_of(side: str, attacker_wins, games):
     """Wins of ``side`` among ``games`` of which the attacker won ``attacker_wins``.
 
     Counts or numpy arrays of counts (``games`` 1 and 0/1 wins for single games).
     """
     return attacker_wins if side == "attacker" else games - attacker_wins
+
+
+@dataclass(frozen=True)
+class OutcomeCount:
+    """``count`` games of the attacker player ``attacker`` against the team player ``team``
+    (player ids) that ended with ``outcome`` (an ``envs.agents.Outcome`` label)."""
+
+    attacker: int
+    team: int
+    outcome: str
+    count: int
+
+    @property
+    def attacker_won(self) -> bool:
+        return attacker_won(self.outcome)
+
+    def wins(self, side: str) -> int:
+        """Games of these that ``side`` won (all or none of them)."""
+        return wins_of(side, self.count if self.attacker_won else 0, self.count)
 
 
 def pair_key(side: str, player: int, opponent: int) -> tuple[int, int]:
@@ -92,20 +118,17 @@ def elo_ratings(results: list[tuple[int, int, int, int]], players: list[int], it
     return {p: float(MEAN_RATING + ELO_SCALE * strength[index[p]]) for p in players}
 
 
-def aggregate(
-    rows: list[tuple[int, int, str, int]], attacker_wins: frozenset[str] = ATTACKER_WINS
-) -> dict[tuple[int, int], tuple[int, int]]:
-    """``{(attacker, team): (attacker wins, games)}`` from ``(attacker, team, outcome, count)`` rows."""
+def aggregate(rows: list[OutcomeCount]) -> dict[tuple[int, int], tuple[int, int]]:
+    """``{(attacker, team): (attacker wins, games)}`` from outcome rows."""
     table: dict[tuple[int, int], list[int]] = defaultdict(lambda: [0, 0])
-    for attacker, team, outcome, count in rows:
-        entry = table[(attacker, team)]
-        entry[1] += count
-        if outcome in attacker_wins:
-            entry[0] += count
+    for row in rows:
+        entry = table[(row.attacker, row.team)]
+        entry[1] += row.count
+        entry[0] += row.wins("attacker")
     return {key: (w, n) for key, (w, n) in table.items()}
 
 
-def league_ratings(outcome_rows: list[tuple[int, int, str, int]], players: list[int]) -> dict[int, float]:
-    """Ratings from ``(attacker, team, outcome, count)`` rows (``LeagueStore.outcome_rows``)."""
+def league_ratings(outcome_rows: list[OutcomeCount], players: list[int]) -> dict[int, float]:
+    """Ratings from outcome rows (``LeagueStore.counted_results``)."""
     table = aggregate(outcome_rows)
     return elo_ratings([(a, t, w, n) for (a, t), (w, n) in table.items()], players)

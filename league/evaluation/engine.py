@@ -29,6 +29,7 @@ from envs.scenarios import evaluation_scenarios
 from envs.scripted import ScriptedPlayer
 from envs.vector_env import TargetDefenseVectorEnv
 from league.analysis.statistics import wilson_interval
+from league.core.payoff import OutcomeCount
 from league.core.players import Player
 from league.rollout.games import ModuleAct, Policy, Rollout, ScriptedOnState
 
@@ -134,8 +135,8 @@ class PairEvaluation:
     def attacker_wins(self) -> int:
         return int(self.result.attacker_wins.sum())
 
-    def outcome_rows(self) -> list[tuple[int, int, str, int]]:
-        return [(self.attacker.id, self.team.id, label, n) for label, n in self.result.outcome_counts().items() if n]
+    def outcome_rows(self) -> list[OutcomeCount]:
+        return [OutcomeCount(self.attacker.id, self.team.id, label, n) for label, n in self.result.outcome_counts().items() if n]
 
 
 def evaluate_pair(

@@ -22,6 +22,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
+from league.core.payoff import OutcomeCount
 from league.core.players import Player
 
 DB_NAME = "league.db"
@@ -259,22 +260,21 @@ class LeagueStore:
         self.db.execute("UPDATE players SET env_steps = ? WHERE id = ?", (env_steps, player_id))
 
     # ---------------------------------------------------------------- results
-    def record_outcomes(self, iteration: int, source: str, rows: list[tuple[int, int, str, int]]) -> None:
-        """``(attacker_id, team_id, outcome, count)`` rows."""
+    def record_outcomes(self, iteration: int, source: str, rows: list[OutcomeCount]) -> None:
         self.db.executemany(
             "INSERT INTO matches VALUES (?, ?, ?, ?, ?, ?)",
-            [(iteration, source, a, t, outcome, n) for a, t, outcome, n in rows],
+            [(iteration, source, r.attacker, r.team, r.outcome, r.count) for r in rows],
         )
 
-    def record_evaluation(self, iteration: int, rows: list[tuple[int, int, str, int]]) -> None:
-        """Record evaluation results ``(attacker_id, team_id, outcome, count)``, replacing repeats of a pair.
+    def record_evaluation(self, iteration: int, rows: list[OutcomeCount]) -> None:
+        """Record evaluation results, replacing repeats of a pair.
 
         The same fixed games played again are not new evidence, so a pair's evaluation is one
         measurement: the newest. Between two frozen players it replaces every earlier one; a
         pair with a learner (whose weights change between iterations) replaces only its
         evaluation of this iteration, and its earlier ones stay as the learner's history.
         """
-        for attacker, team in {(a, t) for a, t, _, _ in rows}:
+        for attacker, team in {(r.attacker, r.team) for r in rows}:
             self.db.execute(
                 "DELETE FROM matches WHERE source = 'evaluation' AND attacker = ?1 AND team = ?2 AND (iteration = ?3 "
                 "OR NOT EXISTS (SELECT 1 FROM players WHERE id IN (?1, ?2) AND kind = 'learner'))",
@@ -282,35 +282,41 @@ class LeagueStore:
             )
         self.record_outcomes(iteration, "evaluation", rows)
 
-    def newest_evaluation_rows(self) -> list[tuple[int, int, str, int]]:
-        """``(attacker, team, outcome, count)`` of each pair's newest evaluation."""
-        return self.db.execute(
+    def newest_evaluation_rows(self) -> list[OutcomeCount]:
+        """The outcomes of each pair's newest evaluation."""
+        return self._outcome_counts(
             "SELECT m.attacker, m.team, m.outcome, SUM(m.count) FROM matches m JOIN ("
             "  SELECT attacker, team, MAX(iteration) AS newest FROM matches WHERE source = 'evaluation' "
             "  GROUP BY attacker, team"
             ") n ON m.attacker = n.attacker AND m.team = n.team AND m.iteration = n.newest "
             "WHERE m.source = 'evaluation' GROUP BY m.attacker, m.team, m.outcome"
-        ).fetchall()
+        )
 
-    def counted_results(self, source: str | None = None) -> list[tuple[int, int, str, int]]:
-        """``(attacker, team, outcome, count)`` with every game counted once: the training
+    def counted_results(self, source: str | None = None) -> list[OutcomeCount]:
+        """Outcomes with every game counted once: the training
         episodes and each pair's newest evaluation (``source`` picks one of the two)."""
         training = self.outcome_rows("training") if source in (None, "training") else []
         return training + (self.newest_evaluation_rows() if source in (None, "evaluation") else [])
 
-    def training_rows_by_iteration(self) -> list[tuple[int, int, int, str, int]]:
-        """``(iteration, attacker, team, outcome, count)`` of the training episodes, oldest first."""
-        return self.db.execute(
+    def training_rows_by_iteration(self) -> list[tuple[int, OutcomeCount]]:
+        """``(iteration, outcomes)`` of the training episodes, oldest first."""
+        rows = self.db.execute(
             "SELECT iteration, attacker, team, outcome, SUM(count) FROM matches WHERE source = 'training' "
             "GROUP BY iteration, attacker, team, outcome ORDER BY iteration"
         ).fetchall()
+        return [(iteration, OutcomeCount(*counts)) for iteration, *counts in rows]
 
-    def outcome_rows(self, source: str | None = None, since_iteration: int = 0) -> list[tuple[int, int, str, int]]:
-        return self.db.execute(
+    def outcome_rows(self, source: str | None = None, since_iteration: int = 0) -> list[OutcomeCount]:
+        """Outcomes of ``source``'s games (both sources: evaluations repeated count again) since ``since_iteration``."""
+        return self._outcome_counts(
             "SELECT attacker, team, outcome, SUM(count) FROM matches "
             "WHERE (?1 IS NULL OR source = ?1) AND iteration >= ?2 GROUP BY attacker, team, outcome",
             (source, since_iteration),
-        ).fetchall()
+        )
+
+    def _outcome_counts(self, query: str, parameters: tuple = ()) -> list[OutcomeCount]:
+        """``OutcomeCount`` rows of a query selecting attacker, team, outcome and a count."""
+        return [OutcomeCount(*row) for row in self.db.execute(query, parameters).fetchall()]
 
     def record_ratings(self, iteration: int, ratings: dict[int, float]) -> None:
         self.db.executemany("INSERT INTO ratings VALUES (?, ?, ?)", [(iteration, p, r) for p, r in ratings.items()])

@@ -37,7 +37,7 @@ from league.config import RunConfig
 from league.curves import LearningCurves, Measurements
 from league.evaluate import method_table
 from league.evaluation.engine import EvaluationPool, PairEvaluation, evaluate_pairs, format_table
-from league.core.payoff import aggregate, attacker_won, league_ratings, record_against, win_rate, wins_of
+from league.core.payoff import OutcomeCount, aggregate, league_ratings, record_against, win_rate
 from league.core.match_plan import MatchPlan
 from league.core.pfsp import pfsp_probabilities
 from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
@@ -243,7 +243,7 @@ class Coordinator:
             trained_phase, steps, timing, [self.store_name(c) for c in snapshots], evaluation,
         )
 
-    def count_played(self, result: dict[str, Any]) -> tuple[list[tuple[int, int, str, int]], int]:
+    def count_played(self, result: dict[str, Any]) -> tuple[list[OutcomeCount], int]:
         """Add this ``train()``'s episodes, wins and env steps to the run's and the phase's
         counts; returns its outcome rows and env steps.
 
@@ -253,11 +253,11 @@ class Coordinator:
         st, phase = self.state, self.state.phase
         rows = self.outcome_rows(result)
         learner_ids = {p.id for p in self.learners(phase.side)}
-        for attacker, team, outcome, count in rows:
-            st.episodes += count
-            if learner_ids & {attacker, team}:
-                phase.episodes += count
-                phase.learner_wins += wins_of(phase.side, count if attacker_won(outcome) else 0, count)
+        for row in rows:
+            st.episodes += row.count
+            if learner_ids & {row.attacker, row.team}:
+                phase.episodes += row.count
+                phase.learner_wins += row.wins(phase.side)
         total_steps = bridge.sampled_env_steps(result)
         steps = total_steps - st.env_steps
         st.env_steps = total_steps
@@ -267,7 +267,7 @@ class Coordinator:
         phase.env_steps += steps - sum(trainee_steps[p.name] for p in self.store.players(kind="exploiter"))
         return rows, steps
 
-    def commit(self, result: dict[str, Any], phase: PhaseState, rows: list[tuple[int, int, str, int]],
+    def commit(self, result: dict[str, Any], phase: PhaseState, rows: list[OutcomeCount],
                snapshots: list[dict[str, Any]], evaluation: list[PairEvaluation], curves: Measurements, checkpoint: Path | None,
                steps: int, seconds: float) -> None:
         """The iteration's one transaction: results, new snapshots, steps, ratings, the
@@ -313,14 +313,14 @@ class Coordinator:
             self.log(f"env runners back to {healthy} of {total} healthy ({restarts} restarts so far)")
         self.runner_health = (healthy, total, restarts)
 
-    def outcome_rows(self, result: dict[str, Any]) -> list[tuple[int, int, str, int]]:
-        """``(attacker id, team id, outcome, count)`` of the episodes that ended in this iteration."""
+    def outcome_rows(self, result: dict[str, Any]) -> list[OutcomeCount]:
+        """The outcomes of the episodes that ended in this iteration, by player."""
         attackers, teams = self.module_players()
         rows = []
         for (attacker_module, targeter_module, defender_module), outcome, count in bridge.episode_outcomes(result):
             attacker = attackers[attacker_module]
             team = teams[(targeter_module, defender_module)]
-            rows.append((attacker.id, team.id, outcome, count))
+            rows.append(OutcomeCount(attacker.id, team.id, outcome, count))
         return rows
 
     def next_phase(self) -> None:
