@@ -41,7 +41,8 @@ from envs.scenarios import evaluation_scenarios
 from league.analysis.exploitability import exploitability
 from league.evaluation.engine import play_fixed_games, policies_of
 from league.analysis.statistics import wilson_interval
-from league.core.players import Player
+from league.core.payoff import wins_of
+from league.core.players import Player, other_side
 from league.reproduce import finished, train_run
 from league.state.run_dir import open_run
 
@@ -155,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
         + ", ".join(f"{arm} {walls[arm]:.0f} s" for arm in args.arms if arm in walls) + ".",
     ]
     for side in args.sides:
-        other = "attacker" if side == "team" else "team"
+        other = other_side(side)
         # (player, its run directory): a scripted player needs none, a learned one its module from there
         columns = [(p, None) for p in scripted[other]] + [(finals[arm][other], args.out / arm) for arm in args.arms]
         titles = [p.name.removeprefix("scripted-") for p in scripted[other]] + [f"{arm} {finals[arm][other].name}" for arm in args.arms]
@@ -168,8 +169,7 @@ def main(argv: list[str] | None = None) -> int:
             for opponent, home in columns:
                 pair = {**policies_of(player, args.out / arm), **policies_of(opponent, home)}
                 result = play_fixed_games(run.game, positions, pair)
-                attacker_wins = int(result.attacker_wins.sum())
-                wins = attacker_wins if side == "attacker" else args.episodes - attacker_wins
+                wins = wins_of(side, int(result.attacker_wins.sum()), args.episodes)
                 cells.append(win_cell(wins, args.episodes))
             found = exploitability_of(args.out / arm, player, args)
             interval = found.interval()

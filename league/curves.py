@@ -46,6 +46,7 @@ from envs.scripted import PLAYERS
 from league.config import RunConfig
 from league.evaluation.engine import evaluate_pair, load_module
 from league.analysis.statistics import wilson_interval
+from league.core.payoff import wins_of
 from league.core.players import Player
 
 # Where a live learner's module is "loaded" from: it comes from the algorithm, not the disk.
@@ -91,13 +92,11 @@ class GameStats:
         return dict(self.__dict__)
 
     def win_rate(self, side: str) -> float:
-        wins = self.attacker_wins if side == "attacker" else self.games - self.attacker_wins
-        return wins / self.games
+        return wins_of(side, self.attacker_wins, self.games) / self.games
 
     def win_interval(self, side: str) -> tuple[float, float]:
         """95% Wilson interval of ``side``'s win rate."""
-        wins = self.attacker_wins if side == "attacker" else self.games - self.attacker_wins
-        return wilson_interval(wins, self.games)
+        return wilson_interval(wins_of(side, self.attacker_wins, self.games), self.games)
 
     def _mean_bonus(self, terminal_reward: float) -> float:
         """Mean terminal reward of A per game: ``+R`` per win, ``-R`` per loss."""

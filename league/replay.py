@@ -21,6 +21,7 @@ from envs.agents import Outcome
 from envs.match import play
 from envs.scenarios import evaluation_scenarios
 from league.evaluate import count
+from league.core.payoff import winner
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
 
@@ -71,8 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     steps, outcome = int(result.steps[0]), Outcome(int(result.outcome[0]))
     path = np.stack([frame[0] for frame in result.trajectory][: steps + 1])  # (steps + 1, 3 agents, 3)
     pairing = f"{attacker.name} vs {team.name} (game {args.game})"
-    won = "attacker" if outcome.attacker_wins else "team"
-    episode = Episode(won, "won", pairing, path, outcome)
+    episode = Episode(winner(outcome.label), "won", pairing, path, outcome)
     out.parent.mkdir(parents=True, exist_ok=True)
     report_html.write_page(f"Replay: {pairing}", [
         f"<h1>{html.escape(pairing)}</h1>",

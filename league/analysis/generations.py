@@ -21,6 +21,7 @@ import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
 from league.analysis.statistics import wilson_interval
+from league.core.payoff import record_against
 from league.core.players import Player
 
 SIDES = ("attacker", "team")
@@ -72,13 +73,12 @@ def generation_lines(
             for opponent in panel:
                 versions, wins, games = [], [], []
                 for snapshot in members:
-                    pair = (snapshot.id, opponent.id) if side == "attacker" else (opponent.id, snapshot.id)
-                    attacker_wins, n = payoff.get(pair, (0, 0))
+                    won, n = record_against(payoff, side, snapshot.id, opponent.id)
                     if not n:
                         missing.append(f"{snapshot.name} vs {opponent.name} not evaluated")
                         continue
                     versions.append(snapshot.version)
-                    wins.append(attacker_wins if side == "attacker" else n - attacker_wins)
+                    wins.append(won)
                     games.append(n)
                 lines.append(GenerationLine(side, lineage, opponent.name, versions, wins, games))
     return lines, missing
