@@ -20,44 +20,13 @@ from pathlib import Path
 
 import torch
 
-from league.evaluation.engine import PairEvaluation, evaluate_pairs, format_table
+from league.evaluation.engine import PairEvaluation, evaluate_pairs
+from league.evaluation.results import last_iteration, record_evaluations
+from league.evaluation.tables import format_table, method_table
 from league.analysis.nash import format_meta_game, meta_game, meta_game_players
 from league.analysis.statistics import wilson_interval
-from league.core.payoff import league_ratings
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
-
-
-def latest_by_method(players: list[Player]) -> dict[int, Player]:
-    """The newest attacker snapshot of each reward method."""
-    latest: dict[int, Player] = {}
-    for p in players:
-        if p.side == "attacker" and p.kind == "snapshot":
-            latest[p.reward_method] = p
-    return latest
-
-
-def method_table(results: list[PairEvaluation]) -> str:
-    """Per attacker reward method (its newest snapshot): win rate against each kind of team."""
-    attackers = latest_by_method([r.attacker for r in results])
-    teams = sorted({r.team.id: r.team for r in results}.values(), key=lambda p: p.id)
-    scripted = [t for t in teams if t.kind == "scripted"]
-    trained = [t for t in teams if t.kind == "snapshot"][-1:]
-    columns = [(t.name, [t]) for t in scripted + trained] + [("league pool", teams)]
-    lines = [
-        "| reward method | attacker | " + " | ".join(name for name, _ in columns) + " |",
-        "| --- | --- | " + " | ".join("---" for _ in columns) + " |",
-    ]
-    for method, attacker in sorted(attackers.items()):
-        cells = []
-        for _, group in columns:
-            ids = {t.id for t in group}
-            chosen = [r for r in results if r.attacker.id == attacker.id and r.team.id in ids]
-            wins, games = sum(r.attacker_wins for r in chosen), sum(r.games for r in chosen)
-            low, high = wilson_interval(wins, games)
-            cells.append(f"{wins / games:.3f} [{low:.3f}, {high:.3f}]" if games else "")
-        lines.append(f"| {method} | {attacker.name} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
 
 
 def evaluation_json(scenario: str, episodes: int, results: list[PairEvaluation], meta: Any) -> dict:
@@ -143,12 +112,8 @@ def main(argv: list[str] | None = None) -> int:
             import ray
 
             ray.shutdown()
-    last = store.last_iteration()
-    iteration = last["iteration"] if last else 0
     with store.transaction():
-        for r in results:
-            store.record_evaluation(iteration, r.outcome_rows())
-        store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
+        record_evaluations(store, last_iteration(store), results)
     attackers, teams = meta_game_players(players)
     meta = meta_game(attackers, teams, {(r.attacker.id, r.team.id): (r.attacker_wins, r.games) for r in results})
     if args.json:

@@ -20,7 +20,7 @@ from typing import Any, Callable
 import numpy as np
 import torch
 
-from envs.agents import AGENTS, Outcome
+from envs.agents import AGENTS
 from envs.config import GameConfig
 from envs.core import BatchedGame
 from envs.match import Controller, GameResults
@@ -28,7 +28,6 @@ from envs.observations import policy_input
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import ScriptedPlayer
 from envs.vector_env import TargetDefenseVectorEnv
-from league.analysis.statistics import wilson_interval
 from league.core.payoff import OutcomeCount
 from league.core.players import Player
 from league.rollout.games import ModuleAct, Policy, Rollout, ScriptedOnState
@@ -283,21 +282,3 @@ def evaluate_pairs(
         return pool.evaluate(pairs, episodes)
     finally:
         pool.close()
-
-
-def format_table(results: list[PairEvaluation]) -> str:
-    """Markdown table: attacker win rate with its 95% Wilson interval and the outcomes."""
-    lines = [
-        "| attacker | team | games | attacker wins | 95% interval | "
-        + " | ".join(o.label for o in Outcome if o != Outcome.RUNNING)
-        + " |",
-        "| --- | --- | --- | --- | --- | " + " | ".join("---" for o in Outcome if o != Outcome.RUNNING) + " |",
-    ]
-    for r in results:
-        low, high = wilson_interval(r.attacker_wins, r.games)
-        counts = r.result.outcome_counts()
-        lines.append(
-            f"| {r.attacker.name} | {r.team.name} | {r.games} | {r.attacker_wins / r.games:.3f} | "
-            f"[{low:.3f}, {high:.3f}] | " + " | ".join(str(counts[o.label]) for o in Outcome if o != Outcome.RUNNING) + " |"
-        )
-    return "\n".join(lines) + "\n"

@@ -24,6 +24,7 @@ import json
 import os
 import shutil
 from pathlib import Path
+from typing import Callable
 
 from filelock import FileLock, Timeout
 
@@ -34,6 +35,7 @@ LOCK_FILE = "run.lock"
 MANIFEST_FILE = "league_manifest.json"
 CONFIG_META = "config"  # the validated config as created, in the store's meta table
 CONFIG_HASH_META = "config_hash"
+CHECKPOINTS_KEPT = 2
 
 
 class RunDirError(ValueError):
@@ -143,6 +145,51 @@ def lock_run(run_dir: Path) -> FileLock:
             "league.status, evaluate and report can read the run meanwhile"
         ) from None
     return lock
+
+
+def checkpoint_directory(run_dir: Path, iteration: int) -> Path:
+    return Path(run_dir) / "checkpoints" / f"iter_{iteration:06d}"
+
+
+def write_checkpoint(run_dir: Path, iteration: int, save: Callable[[Path], None]) -> Path:
+    """``save(directory)`` into a temporary directory, its manifest written, then renamed into
+    place as ``iteration``'s checkpoint; a failure (a full disk, a stop signal) removes the
+    temporary directory."""
+    final = checkpoint_directory(run_dir, iteration)
+    partial = final.with_name(final.name + ".partial")
+    for stale in (partial, final):
+        if stale.exists():
+            shutil.rmtree(stale)
+    try:
+        save(partial)
+        write_manifest(partial)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    partial.rename(final)
+    return final
+
+
+def prune_checkpoints(run_dir: Path, store: LeagueStore, kept: int = CHECKPOINTS_KEPT) -> None:
+    """Remove every checkpoint directory but the newest ``kept`` the store records (partial ones too)."""
+    keep = {run_dir / path for _, path in store.checkpoints()[-kept:]}
+    for directory in (run_dir / "checkpoints").glob("iter_*"):
+        if directory not in keep:
+            shutil.rmtree(directory, ignore_errors=True)
+
+
+def fresh_directory(path: Path) -> Path:
+    """``path``, with whatever was there removed (a module saved anew, or one left by a killed run)."""
+    if path.exists():
+        shutil.rmtree(path)
+    return path
+
+
+def write_replacing(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` in one rename: a reader sees the old file or the new one, never a part."""
+    partial = path.with_name(path.name + ".partial")
+    partial.write_text(text)
+    partial.replace(path)
 
 
 def _digest(path: Path) -> str:

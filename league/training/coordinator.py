@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 import pickle
-import shutil
 import time
 from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field, replace
@@ -35,19 +34,19 @@ import numpy as np
 from league.rllib import bridge
 from league.config import RunConfig
 from league.curves import LearningCurves, Measurements
-from league.evaluate import method_table
-from league.evaluation.engine import EvaluationPool, PairEvaluation, evaluate_pairs, format_table
+from league.evaluation.engine import EvaluationPool, PairEvaluation, evaluate_pairs
+from league.evaluation.results import record_evaluations
+from league.evaluation.tables import evaluation_markdown
 from league.core.payoff import OutcomeCount, aggregate, league_ratings, record_against, win_rate
 from league.core.match_plan import MatchPlan
 from league.core.pfsp import pfsp_probabilities
 from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
 from league.training.progress import IterationTiming, ProgressReporter
-from league.state.run_dir import record_config, write_manifest
+from league.state.run_dir import fresh_directory, prune_checkpoints, record_config, write_checkpoint, write_replacing
 from league.core.schedule import PhaseState, schedule_of
 from league.training.stop import StopRequests
 from league.state.store import DB_NAME, LeagueStore
 
-CHECKPOINTS_KEPT = 2
 GAMES_FILE = "games_in_flight.pkl"  # in a checkpoint directory: the env runners' games in flight
 EVALUATION_FILE = "evaluation.md"
 
@@ -342,9 +341,7 @@ class Coordinator:
         """The side's learners, as they are now, against their opponents on the fixed games."""
         pairs = []
         for learner in self.learners(side):
-            path = self.run_dir / "players" / learner.name
-            if path.exists():
-                shutil.rmtree(path)
+            path = fresh_directory(self.run_dir / "players" / learner.name)
             bridge.save_module(self.algo, learner.name, path)
             current = replace(learner, checkpoint=str(path.relative_to(self.run_dir)))
             for opponent in self.candidates(side):
@@ -386,9 +383,8 @@ class Coordinator:
         version = 1 + max(versions, default=-1 if kind == "snapshot" else 0)
         player = Player(id=-1, side=side, kind=kind, version=version, reward_method=trainee.reward_method)
         bridge.add_snapshot(self.algo, self.run, player, trainee.name)
-        path = self.run_dir / "players" / player.name
-        if path.exists():  # left over by a run killed before it committed this snapshot
-            shutil.rmtree(path)
+        # (one left over by a run killed before it committed this snapshot is replaced)
+        path = fresh_directory(self.run_dir / "players" / player.name)
         bridge.save_module(self.algo, player.name, path)
         return {
             "side": side,
@@ -401,22 +397,13 @@ class Coordinator:
         }
 
     def checkpoint(self) -> Path:
-        """Write the algorithm and its manifest to a temporary directory, then rename it into
-        place; a failure (a full disk, a stop signal) removes the temporary directory."""
-        final = self.run_dir / "checkpoints" / f"iter_{self.state.iteration:06d}"
-        partial = final.with_name(final.name + ".partial")
-        for stale in (partial, final):
-            if stale.exists():
-                shutil.rmtree(stale)
-        try:
-            self.algo.save_to_path(str(partial))
-            (partial / GAMES_FILE).write_bytes(pickle.dumps(bridge.games_in_flight(self.algo)))
-            write_manifest(partial)
-        except BaseException:
-            shutil.rmtree(partial, ignore_errors=True)
-            raise
-        partial.rename(final)
-        return final
+        """The algorithm and the env runners' games in flight, in this iteration's checkpoint directory."""
+
+        def save(directory: Path) -> None:
+            self.algo.save_to_path(str(directory))
+            (directory / GAMES_FILE).write_bytes(pickle.dumps(bridge.games_in_flight(self.algo)))
+
+        return write_checkpoint(self.run_dir, self.state.iteration, save)
 
     def prune_checkpoints(self) -> None:
         prune_checkpoints(self.run_dir, self.store)
@@ -457,27 +444,11 @@ class Coordinator:
             )
         iteration = self.state.iteration
         with store.transaction():
-            for r in results:
-                store.record_evaluation(iteration, r.outcome_rows())
-            store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
+            record_evaluations(store, iteration, results)
             store.set_meta("evaluated_iteration", iteration)
         out = self.run_dir / EVALUATION_FILE
-        partial = out.with_name(out.name + ".partial")
-        partial.write_text(
-            f"# Evaluation of {run.name} after iteration {iteration}\n\n"
-            f"{ev.episodes} fixed games of scenario set `{run.game.scenario}` per pair; "
-            "attacker win rate with its 95% Wilson interval.\n\n" + format_table(results)
-            + "\n## Per attacker reward method\n\n" + method_table(results)
-        )
-        partial.replace(out)
+        write_replacing(out, evaluation_markdown(run, iteration, results))
         progress.evaluation(results, iteration)
         progress.message(f"evaluation of {len(results)} pairs written to {out}")
         return out
 
-
-def prune_checkpoints(run_dir: Path, store: LeagueStore, kept: int = CHECKPOINTS_KEPT) -> None:
-    """Remove every checkpoint directory but the newest ``kept`` the store records (partial ones too)."""
-    keep = {run_dir / path for _, path in store.checkpoints()[-kept:]}
-    for directory in (run_dir / "checkpoints").glob("iter_*"):
-        if directory not in keep:
-            shutil.rmtree(directory, ignore_errors=True)

@@ -1,0 +1,44 @@
+"""Evaluation results into the store: each pair's newest evaluation, and the ratings refitted with it.
+
+The evaluation engine only plays; what it played is recorded here by whoever asked
+(the coordinator, ``league.evaluate``, ``league.exploit``, ``league.report``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from league.config import RunConfig
+from league.core.payoff import aggregate, league_ratings
+from league.core.players import Player
+from league.evaluation.engine import PairEvaluation, evaluate_pairs
+from league.state.store import LeagueStore
+
+
+def record_evaluations(store: LeagueStore, iteration: int, results: list[PairEvaluation]) -> None:
+    """Record ``results`` as evaluations of ``iteration`` and refit that iteration's ratings
+    (inside the caller's transaction)."""
+    for r in results:
+        store.record_evaluation(iteration, r.outcome_rows())
+    store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
+
+
+def last_iteration(store: LeagueStore) -> int:
+    """The run's last recorded iteration (0 before the first): what evaluations are recorded under."""
+    last = store.last_iteration()
+    return last["iteration"] if last else 0
+
+
+def evaluate_missing(
+    store: LeagueStore, run: RunConfig, run_dir: Path, pairs: list[tuple[Player, Player]]
+) -> list[PairEvaluation]:
+    """Play the ``(attacker, team)`` pairs the store has no evaluation of on the run's fixed
+    games, in this process, and record them; returns what was played."""
+    evaluated = aggregate(store.newest_evaluation_rows())
+    missing = [(a, t) for a, t in pairs if (a.id, t.id) not in evaluated]
+    if not missing:
+        return []
+    results = evaluate_pairs(run.game, run_dir, missing, run.evaluation.episodes)
+    with store.transaction():
+        record_evaluations(store, last_iteration(store), results)
+    return results
