@@ -226,7 +226,7 @@ class EvaluationSettings(Strict):
     curve_every_env_steps: int = Field(20_000, ge=0)
     """Learning curves: each time a learner passes another multiple of this many env steps, it is
     played (deterministic actions, in the driver) against its curve opponents on the first
-    ``curve_episodes`` fixed games and the result stored (``league.curves``); 0: no curves."""
+    ``curve_episodes`` fixed games and the result stored (``league.evaluation.learning_curves``); 0: no curves."""
     curve_episodes: int = Field(200, ge=1)
     """Fixed evaluation games per learning-curve point (and per reference line)."""
 

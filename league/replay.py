@@ -15,13 +15,7 @@ import html
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from envs.agents import Outcome
-from envs.match import play
-from envs.scenarios import evaluation_scenarios
 from league.evaluate import count
-from league.core.payoff import winner
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
 
@@ -61,18 +55,12 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     from envs.render import plot_episode
+    from league.evaluation.trajectories import replay_game
     from league.reports import html as report_html
-    from league.evaluation.engine import agents_of
-    from league.report import Episode
 
     torch.set_num_threads(run.resources.threads_for(1))
-    start = evaluation_scenarios(run.game.scenario, args.game + 1)[args.game :]
-    controllers = {**agents_of(attacker, args.run_dir), **agents_of(team, args.run_dir)}
-    result = play(run.game, controllers, start, record=True)
-    steps, outcome = int(result.steps[0]), Outcome(int(result.outcome[0]))
-    path = np.stack([frame[0] for frame in result.trajectory][: steps + 1])  # (steps + 1, 3 agents, 3)
-    pairing = f"{attacker.name} vs {team.name} (game {args.game})"
-    episode = Episode(winner(outcome.label), "won", pairing, path, outcome)
+    episode, steps = replay_game(run, args.run_dir, attacker, team, args.game)
+    outcome, pairing = episode.outcome, episode.pairing
     out.parent.mkdir(parents=True, exist_ok=True)
     report_html.write_page(f"Replay: {pairing}", [
         f"<h1>{html.escape(pairing)}</h1>",

@@ -8,7 +8,9 @@ from envs.config import GameConfig
 from envs.match import play, scripted_players
 from envs.scenarios import evaluation_scenarios
 from league.config import RunConfig
-from league.curves import GameStats, LearningCurves, main as curves_main, plot_run, read_curves
+from league.curves import main as curves_main
+from league.evaluation.learning_curves import GameStats, LearningCurves, read_curves
+from league.reports.plots import plot_run
 from league.evaluation.engine import agents_of
 from league.core.players import Player
 from league.state.run_dir import open_run

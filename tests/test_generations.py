@@ -6,9 +6,12 @@ import pytest
 from PIL import Image
 
 from league.config import saved_run_config
-from league.analysis.generations import generation_lines, generations_figure, generations_plot
+from league.analysis.generations import generation_lines
+from league.reports.html import generations_figure
+from league.reports.plots import generations_plot
 from league.core.players import Player
-from league.report import build_report, gather
+from league.report import build_report
+from league.reports.data import gather
 from league.state.store import LeagueStore
 
 A0 = Player(1, "attacker", "snapshot", 0, 2)
@@ -58,14 +61,20 @@ def test_report_plays_a_missing_pair_and_draws_the_generations(run_copy):
         db.execute("DELETE FROM matches WHERE source = 'evaluation' AND attacker = ? AND team = ?", (snapshot.id, scripted.id))
     store = LeagueStore(run_copy)
     try:
-        data = gather(store, saved_run_config(run_copy), run_copy)
+        data = gather(store, saved_run_config(run_copy))  # reads only: the pair is missing
+        assert "attacker-m2-v1 vs scripted-avoid_attacker+pure_pursuit not evaluated" in data.missing_generations
+    finally:
+        store.close()
+
+    report = build_report(run_copy).read_text()  # plays the missing pair and records it first
+    store = LeagueStore(run_copy)
+    try:
+        data = gather(store, saved_run_config(run_copy))
     finally:
         store.close()
     [line] = [line for line in data.generations if line.label == "attacker-m2 vs scripted-avoid_attacker+pure_pursuit"]
     assert line.versions == [0, 1] and not data.missing_generations
-    assert data.payoff[(snapshot.id, scripted.id)][1] == line.games[1]  # played now, on the run's evaluation games
-
-    report = build_report(run_copy).read_text()
+    assert data.payoff[(snapshot.id, scripted.id)][1] == line.games[1]  # played on the run's evaluation games
     width, height = Image.open(run_copy / "report" / "generations.png").size
     assert width > 1000 and height > 400
     assert "## Progress over generations" in report and "![generations](generations.png)" in report

@@ -148,7 +148,7 @@ def test_the_payoff_heat_map_has_room_for_its_colour_bar_and_title(report_dir):
 
 
 def test_the_report_page_has_the_learning_curves_of_report_md(tiny_run, report_dir):
-    from league.curves import read_curves
+    from league.evaluation.learning_curves import read_curves
 
     store = LeagueStore(tiny_run)
     curves = read_curves(store)
@@ -181,13 +181,14 @@ def test_plots_label_what_they_draw(tiny_run):
     # curves.png: env-step ticks ran together ("1000001200001400001600001800000"); ratings.png:
     # a player rated once had a legend entry and nothing drawn, and the final refit was unexplained.
     from league.config import saved_run_config
-    from league.curves import curves_figure, read_curves
-    from league.report import gather, ratings_figure
+    from league.evaluation.learning_curves import read_curves
+    from league.reports.data import gather
+    from league.reports.plots import curves_figure, ratings_figure
 
     store = LeagueStore(tiny_run)
     try:
         curves = read_curves(store)
-        data = gather(store, saved_run_config(tiny_run), tiny_run)
+        data = gather(store, saved_run_config(tiny_run))
     finally:
         store.close()
     fig = curves_figure([[c] for c in curves], 0.0, "curves")

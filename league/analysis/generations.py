@@ -4,21 +4,14 @@ players of the other side.
 A league that improves shows each lineage's win rate rising with the snapshot version
 against the whole panel; one that cycles shows it rising against some panel members and
 falling against others, or going up and down. The numbers are each pair's newest
-evaluation on the fixed games (``league.report`` plays a pair the run never evaluated
-before it draws; a point still missing is named under the plot).
+evaluation on the fixed games (``python -m league.report`` plays a pair the run never
+evaluated before it builds the report; a point still missing is named under the plot).
+``league.reports.plots`` and ``league.reports.html`` draw the lines.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from pathlib import Path
-
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-import plotly.graph_objects as go
-from plotly.subplots import make_subplots
 
 from league.analysis.statistics import wilson_interval
 from league.core.payoff import record_against
@@ -82,45 +75,3 @@ def generation_lines(
                     games.append(n)
                 lines.append(GenerationLine(side, lineage, opponent.name, versions, wins, games))
     return lines, missing
-
-
-def generations_plot(lines: list[GenerationLine], out: Path, dpi: int = 110) -> None:
-    """One panel per side: win rate of each snapshot (95% Wilson interval) against each scripted opponent."""
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
-    colours = plt.get_cmap("tab10")
-    for ax, side in zip(axes, SIDES):
-        shown = [line for line in lines if line.side == side]
-        for k, line in enumerate(shown):
-            ax.errorbar(line.versions, line.rates, yerr=list(line.error_bars()), label=line.label, marker="o", ms=3.5, lw=1.2,
-                        capsize=2.5, color=colours(k % 10))
-        if shown:
-            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False)
-        else:
-            ax.text(0.5, 0.5, f"no {side} snapshot or no scripted opponent", ha="center", va="center", transform=ax.transAxes)
-        ax.set_title(PANEL_TITLES[side])
-        ax.set_xlabel("snapshot version")
-        ax.set_ylim(-0.03, 1.03)
-        ax.xaxis.get_major_locator().set_params(integer=True)
-    axes[0].set_ylabel("win rate of the snapshot")
-    fig.suptitle("progress over generations (newest evaluation of each pair, 95% Wilson intervals)")
-    fig.tight_layout()
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
-
-
-def generations_figure(lines: list[GenerationLine]) -> go.Figure:
-    """The same as ``generations_plot``, interactive."""
-    fig = make_subplots(rows=1, cols=2, shared_yaxes=True, subplot_titles=[PANEL_TITLES[s] for s in SIDES])
-    for column, side in enumerate(SIDES, start=1):
-        for line in (line for line in lines if line.side == side):
-            below, above = line.error_bars()
-            fig.add_trace(go.Scatter(
-                x=line.versions, y=line.rates, name=line.label, mode="lines+markers",
-                error_y=dict(type="data", symmetric=False, array=above, arrayminus=below),
-                customdata=list(zip(line.wins, line.games)),
-                hovertemplate="version %{x}: %{y:.3f} (%{customdata[0]} of %{customdata[1]} games)",
-            ), row=1, col=column)
-        fig.update_xaxes(title_text="snapshot version", dtick=1, row=1, col=column)
-    fig.update_yaxes(title_text="win rate of the snapshot", range=[-0.03, 1.03], row=1, col=1)
-    fig.update_layout(title="progress over generations (newest evaluation of each pair, 95% Wilson intervals)", height=460)
-    return fig

@@ -14,34 +14,34 @@ from typing import TYPE_CHECKING
 import numpy as np
 import plotly.graph_objects as go
 from plotly.offline import get_plotlyjs
+from plotly.subplots import make_subplots
 
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.render import COLOURS
-from league.curves import quantities, reference_colour
 from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
-from league.analysis.generations import generations_figure
+from league.analysis.generations import PANEL_TITLES, SIDES, GenerationLine
 from league.analysis.nash import META_GAME_NOTE, MIXTURE_HEADER
 from league.core.players import POOL_KINDS
-from league.report import (
+from league.evaluation.trajectories import Episode
+from league.reports.data import (
     CURVES_NOTE,
     GENERATIONS_NOTE,
     NO_EXPLOITABILITY,
     NO_META_GAME,
     RATINGS_HEADER,
     RATINGS_NOTE,
-    SIDE_COLOURS,
     TABLE_ONE_HEADER,
-    Episode,
     Phase,
+    ReportData,
     Series,
     payoff_grid,
     rating_rows,
     table_one_rows,
 )
+from league.reports.plots import SIDE_COLOURS, quantities, reference_colour
 
 if TYPE_CHECKING:
     from envs.config import GameConfig
-    from league.report import ReportData
 
 # envs.render names matplotlib colours; the browser needs CSS ones.
 CSS = {"tab:red": "#d62728", "tab:blue": "#1f77b4", "tab:green": "#2ca02c"}
@@ -98,9 +98,7 @@ def line_figure(series: Series, phases: list[Phase], ylabel: str, title: str) ->
     return fig
 
 
-def ratings_figure(data: "ReportData") -> go.Figure:
-    from plotly.subplots import make_subplots
-
+def ratings_figure(data: ReportData) -> go.Figure:
     fig = make_subplots(rows=1, cols=2, shared_yaxes=True, subplot_titles=("attacker side", "team side"))
     for col, side in enumerate(("attacker", "team"), start=1):
         for player in (p for p in data.players if p.side == side):
@@ -120,7 +118,7 @@ def ratings_figure(data: "ReportData") -> go.Figure:
     return fig
 
 
-def payoff_figure(data: "ReportData") -> go.Figure:
+def payoff_figure(data: ReportData) -> go.Figure:
     grid = payoff_grid(data)
     text = np.where(np.isnan(grid), "", np.vectorize(lambda v: f"{v:.2f}")(np.nan_to_num(grid)))
     fig = go.Figure(go.Heatmap(
@@ -198,11 +196,9 @@ def trajectory_figure(episode: Episode, game: "GameConfig") -> go.Figure:
     return fig
 
 
-def curves_figure(data: "ReportData") -> go.Figure:
+def curves_figure(data: ReportData) -> go.Figure:
     """The learning curves of ``curves.png``: a row per (learner, opponent), a panel per quantity,
     the scripted players and the untrained version 0 as dashed and dotted lines."""
-    from plotly.subplots import make_subplots
-
     curves, terminal_reward = data.curves, data.run.game.terminal_reward
     titles = [f"{c.learner.name} vs {c.opponent.name}: {q.title}" for c in curves for q in quantities(c.learner)]
     fig = make_subplots(rows=len(curves), cols=2, subplot_titles=titles, vertical_spacing=0.3 / max(1, len(curves)))
@@ -221,21 +217,39 @@ def curves_figure(data: "ReportData") -> go.Figure:
     return fig
 
 
-def meta_game_html(data: "ReportData") -> list[str]:
+def generations_figure(lines: list[GenerationLine]) -> go.Figure:
+    """``plots.generations_plot``, interactive."""
+    fig = make_subplots(rows=1, cols=2, shared_yaxes=True, subplot_titles=[PANEL_TITLES[s] for s in SIDES])
+    for column, side in enumerate(SIDES, start=1):
+        for line in (line for line in lines if line.side == side):
+            below, above = line.error_bars()
+            fig.add_trace(go.Scatter(
+                x=line.versions, y=line.rates, name=line.label, mode="lines+markers",
+                error_y=dict(type="data", symmetric=False, array=above, arrayminus=below),
+                customdata=list(zip(line.wins, line.games)),
+                hovertemplate="version %{x}: %{y:.3f} (%{customdata[0]} of %{customdata[1]} games)",
+            ), row=1, col=column)
+        fig.update_xaxes(title_text="snapshot version", dtick=1, row=1, col=column)
+    fig.update_yaxes(title_text="win rate of the snapshot", range=[-0.03, 1.03], row=1, col=1)
+    fig.update_layout(title="progress over generations (newest evaluation of each pair, 95% Wilson intervals)", height=460)
+    return fig
+
+
+def meta_game_html(data: ReportData) -> list[str]:
     if data.meta is None:
         return [f"<p>No meta-game: {html.escape(NO_META_GAME)}</p>"]
     return [f"<p>{html.escape(data.meta.value_line())}</p>", html_table(MIXTURE_HEADER, data.meta.mixture_rows()),
             f"<p class='note'>{html.escape(META_GAME_NOTE)}</p>"]
 
 
-def exploitability_html(data: "ReportData") -> list[str]:
+def exploitability_html(data: ReportData) -> list[str]:
     if not data.exploitability:
         return [f"<p>{html.escape(NO_EXPLOITABILITY)}</p>"]
     return [f"<p>{html.escape(EXPLOITABILITY_NOTE)}</p>",
             html_table(EXPLOITABILITY_HEADER, [e.row() for e in data.exploitability])]
 
 
-def write(data: "ReportData", out: Path) -> None:
+def write(data: ReportData, out: Path) -> None:
     """Write the page to ``out`` (through a temporary file: never a half-written report)."""
     parts = [
         f"<h1>Report: {html.escape(data.run.name)}</h1>", f"<p>{html.escape(data.summary)}</p>",

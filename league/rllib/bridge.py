@@ -294,6 +294,14 @@ def learner_weights(algo: Algorithm, module_id: str) -> dict[str, torch.Tensor]:
     return algo.learner_group.get_weights(module_ids=[module_id])[module_id]
 
 
+def live_module(algo: Algorithm, run: RunConfig, learner: Player) -> torch.nn.Module:
+    """A copy of ``learner``'s module with its weights as they are now, in eval mode (a learning-curve point)."""
+    module = learner_spec(run, learner.side, learner.reward_method).build()
+    module.set_state(learner_weights(algo, learner.name))
+    module.eval()
+    return module
+
+
 # ---------------------------------------------------------------- checkpoints and results
 def load_module(path: str | Path) -> torch.nn.Module:
     """A module saved by ``save_module``, in eval mode."""

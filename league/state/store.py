@@ -27,7 +27,7 @@ from league.core.players import Player
 
 DB_NAME = "league.db"
 
-# Columns of one measurement on the fixed games (league.curves.GameStats): means per game of
+# Columns of one measurement on the fixed games (league.evaluation.learning_curves.GameStats): means per game of
 # the per-step rewards, without any terminal reward (derived from the wins on read).
 CURVE_STATS = (
     "games", "attacker_wins", "attacker_return_1", "attacker_return_2", "attacker_return_3",
@@ -92,14 +92,14 @@ CREATE TABLE IF NOT EXISTS checkpoints (
 );
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 """ + """
-CREATE TABLE IF NOT EXISTS curve_points (     -- league.curves: a learner on the fixed games as it trains
+CREATE TABLE IF NOT EXISTS curve_points (     -- learning curves: a learner on the fixed games as it trains
     iteration INTEGER NOT NULL,
     learner INTEGER NOT NULL REFERENCES players(id),
     opponent INTEGER NOT NULL REFERENCES players(id),
     env_steps INTEGER NOT NULL,      -- the learner's env steps when measured
     {stats}
 );
-CREATE TABLE IF NOT EXISTS curve_references (  -- league.curves: a reference player against a curve opponent
+CREATE TABLE IF NOT EXISTS curve_references (  -- learning curves: a reference player against a curve opponent
     iteration INTEGER NOT NULL,      -- when it was measured (once per run and opponent)
     opponent INTEGER NOT NULL REFERENCES players(id),
     side TEXT NOT NULL,              -- the side the reference plays (the learner's)

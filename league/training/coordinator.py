@@ -33,7 +33,7 @@ import numpy as np
 
 from league.rllib import bridge
 from league.config import RunConfig
-from league.curves import LearningCurves, Measurements
+from league.evaluation.learning_curves import LearningCurves, Measurements
 from league.evaluation.engine import EvaluationPool, PairEvaluation, evaluate_pairs
 from league.evaluation.results import record_evaluations
 from league.evaluation.tables import evaluation_markdown
@@ -224,7 +224,7 @@ class Coordinator:
         started = time.perf_counter()
         evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
         curves = self.curves.measure(
-            self.algo, self.store, learners, self.candidates(phase.side), steps_before, st.learner_env_steps
+            lambda learner: bridge.live_module(self.algo, self.run, learner), self.store, learners, self.candidates(phase.side), steps_before, st.learner_env_steps
         )
         timing = IterationTiming(sampling=seconds - learning, learning=learning, evaluation=time.perf_counter() - started)
         trained_phase = replace(phase)  # this iteration's phase, before a phase change

@@ -1,0 +1,207 @@
+"""The report's data: what ``league.reports.markdown`` and ``league.reports.html`` show, read from the store.
+
+Evaluation numbers are each pair's newest evaluation in the league database (a pair
+played again on the same fixed games is one measurement, not more evidence). Reading
+only: ``python -m league.report`` plays the pairs the run never evaluated, and the
+recorded trajectories, before it gathers this.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from league.analysis.exploitability import Exploitability, exploitability
+from league.analysis.generations import GenerationLine, generation_lines
+from league.analysis.nash import MetaGame, meta_game, meta_game_players
+from league.analysis.statistics import wilson_interval
+from league.config import RunConfig
+from league.core.payoff import aggregate, league_ratings
+from league.core.players import Player
+from league.evaluation.learning_curves import Curve, read_curves
+from league.evaluation.trajectories import Episode, Trajectories
+from league.state.store import LeagueStore
+
+# The paper's Table 1: A's winning percentage over 100 test rounds per method.
+PAPER_TABLE_1 = {1: 0.48, 2: 0.6253, 3: 0.5763}
+
+Series = dict[str, tuple[list[int], list[float]]]  # label -> (iterations, values)
+
+
+@dataclass(frozen=True)
+class Phase:
+    index: int
+    side: str
+    first_iteration: int
+    last_iteration: int
+
+
+@dataclass
+class ReportData:
+    run: RunConfig
+    players: list[Player]
+    attackers: list[Player]  # frozen, rows of the payoff matrix
+    teams: list[Player]  # frozen, columns
+    payoff: dict[tuple[int, int], tuple[int, int]]  # (attacker id, team id) -> (attacker wins, games)
+    ratings: dict[int, tuple[list[int], list[float]]]  # player id -> (iterations, ratings) over training
+    final_ratings: dict[int, float]  # fitted now to every game counted once; players without games have none
+    games: dict[int, int]  # player id -> games in training and newest evaluations
+    win_rates: Series
+    returns: Series
+    phases: list[Phase]
+    episodes: list[Episode]
+    missing_episodes: list[str]  # why a won or lost game of a side is not shown
+    summary: str
+    meta: MetaGame | None = None  # the Nash equilibrium of the payoff matrix (None: a side has no frozen player)
+    exploitability: list[Exploitability] = field(default_factory=list)  # best responses of league.exploit
+    generations: list[GenerationLine] = field(default_factory=list)  # snapshots against the scripted panel
+    missing_generations: list[str] = field(default_factory=list)  # points of those lines not evaluated
+    evaluated_iteration: int | None = None  # the run's final evaluation, whose games refit that iteration's ratings
+    curves: list[Curve] = field(default_factory=list)  # learners on the fixed games as they trained
+
+
+def player_games(store: LeagueStore, payoff: dict[tuple[int, int], tuple[int, int]]) -> dict[int, int]:
+    """Games per player: training episodes plus the newest evaluation of each pair."""
+    games: dict[int, int] = defaultdict(int)
+    for table in (aggregate(store.outcome_rows("training")), payoff):
+        for (attacker, team), (_, n) in table.items():
+            games[attacker] += n
+            games[team] += n
+    return dict(games)
+
+
+def learner_win_rates(store: LeagueStore, players: list[Player]) -> Series:
+    """Each learner's win rate over its training episodes, per iteration it played."""
+    learners = {p.id: p for p in players if p.trains}
+    counts: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0])
+    for iteration, row in store.training_rows_by_iteration():
+        for pid in (row.attacker, row.team):
+            if pid in learners:
+                entry = counts[(learners[pid].name, iteration)]
+                entry[1] += row.count
+                entry[0] += row.wins(learners[pid].side)
+    series: Series = defaultdict(lambda: ([], []))
+    for (name, iteration), (wins, games) in sorted(counts.items(), key=lambda kv: kv[0][1]):
+        series[name][0].append(iteration)
+        series[name][1].append(wins / games)
+    return dict(series)
+
+
+def while_learning(series: Series, learner_sides: dict[str, str], learning_side: dict[int, str]) -> Series:
+    """Each learner's points of the iterations in which its side learned. Episodes begun
+    before a phase change finish in the next phase's first iteration: a handful, too few
+    to plot as a learner's win rate or return."""
+    kept: Series = {}
+    for name, (x, y) in series.items():
+        points = [(i, v) for i, v in zip(x, y) if learning_side.get(i) == learner_sides.get(name)]
+        kept[name] = ([i for i, _ in points], [v for _, v in points])
+    return kept
+
+
+def phases_of(iterations: list[dict]) -> list[Phase]:
+    phases: list[Phase] = []
+    for row in iterations:
+        if phases and phases[-1].index == row["phase"]:
+            phases[-1] = Phase(row["phase"], row["learner_side"], phases[-1].first_iteration, row["iteration"])
+        else:
+            phases.append(Phase(row["phase"], row["learner_side"], row["iteration"], row["iteration"]))
+    return phases
+
+
+def gather(store: LeagueStore, run: RunConfig, trajectories: Trajectories | None = None) -> ReportData:
+    """Everything the report shows, read from the store (``trajectories``: the games recorded for it, played by the caller)."""
+    players = store.players()
+    attackers, teams = meta_game_players(players)  # snapshots and scripted players
+    payoff = aggregate(store.newest_evaluation_rows())
+    trajectories = trajectories or Trajectories([], [])
+
+    ratings: dict[int, tuple[list[int], list[float]]] = defaultdict(lambda: ([], []))
+    for iteration, pid, rating in store.rating_history():
+        ratings[pid][0].append(iteration)
+        ratings[pid][1].append(rating)
+    returns: Series = defaultdict(lambda: ([], []))
+    iterations = store.iteration_rows()
+    for row in iterations:
+        for module, value in json.loads(row["returns"] or "{}").items():
+            returns[module][0].append(row["iteration"])
+            returns[module][1].append(value)
+    learner_sides = {p.name: p.side for p in players if p.trains}
+    learning_side = {row["iteration"]: row["learner_side"] for row in iterations}
+
+    last = store.last_iteration() or {}
+    summary = (
+        f"{last.get('iteration', 0)} iterations, {last.get('env_steps', 0)} env steps, {last.get('episodes', 0)} "
+        f"training episodes, {store.training_seconds():.0f} s of training iterations; {len(players)} players. "
+        f"Evaluation: {run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair."
+    )
+    generations, missing_generations = generation_lines(players, payoff)
+    return ReportData(
+        run=run, players=players, attackers=attackers, teams=teams, payoff=payoff, ratings=dict(ratings),
+        final_ratings=league_ratings(store.counted_results(), [p.id for p in players]),
+        games=player_games(store, payoff),
+        win_rates=while_learning(learner_win_rates(store, players), learner_sides, learning_side),
+        returns=while_learning(dict(returns), learner_sides, learning_side),
+        phases=phases_of(iterations), episodes=trajectories.episodes, missing_episodes=trajectories.missing,
+        summary=summary,
+        meta=meta_game(attackers, teams, payoff),
+        exploitability=exploitability(players, store.newest_evaluation_rows()),
+        generations=generations, missing_generations=missing_generations,
+        evaluated_iteration=store.get_meta("evaluated_iteration"),
+        curves=read_curves(store),
+    )
+
+
+# ---------------------------------------------------------------- tables
+def table_one_rows(data: ReportData) -> list[list[str]]:
+    """The newest attacker snapshot of each reward method against the paper's scripted team."""
+    team = next((p for p in data.teams if p.is_paper_team), None)
+    latest = {p.reward_method: p for p in data.attackers if p.kind == "snapshot"}
+    rows = []
+    for method, attacker in sorted(latest.items()):
+        wins, games = data.payoff.get((attacker.id, team.id), (0, 0)) if team else (0, 0)
+        low, high = wilson_interval(wins, games)
+        rate = f"{wins / games:.3f}" if games else "not evaluated"
+        rows.append([str(method), attacker.name, rate, f"[{low:.3f}, {high:.3f}]", str(games), str(PAPER_TABLE_1[method])])
+    return rows
+
+
+TABLE_ONE_HEADER = ["method", "attacker", "win rate vs the paper's scripted team", "95% interval", "games",
+                    "paper (100 rounds)"]
+CURVES_NOTE = ("Each learner, as it was every `evaluation.curve_every_env_steps` of its env steps, against its curve "
+               "opponents on the same fixed games (deterministic actions; `league.evaluation.learning_curves`), with the scripted players "
+               "of its side and its untrained version 0 on those games as horizontal lines.")
+NO_META_GAME = "the league has no frozen attacker or no frozen team."
+RATINGS_HEADER = ["player", "side", "kind", "rating", "Nash-averaged rating", "games"]
+RATINGS_NOTE = ("Every player's rating, fitted to every game counted once: the training episodes and each pair's "
+                "newest evaluation (the same fixed games played again are one measurement). A player without "
+                "games has no rating. Nash-averaged rating: the player's win rate against the other side's Nash "
+                "mixture (frozen league players only).")
+
+
+def rating_rows(data: ReportData) -> list[list[str]]:
+    """Every player's rating fitted to every game counted once, best first; players without games have none."""
+    newest = data.final_ratings
+    by_rating = sorted(data.players, key=lambda p: (p.id not in newest, -newest.get(p.id, 0.0)))
+    nash = data.meta.ratings() if data.meta else {}
+    return [[p.name, p.side, p.kind, f"{newest[p.id]:.0f}" if p.id in newest else "no games",
+             f"{nash[p.id]:.3f}" if p.id in nash else "", str(data.games.get(p.id, 0))]
+            for p in by_rating]
+
+
+GENERATIONS_NOTE = ("Every snapshot of each side against the scripted players of the other side, by snapshot version: "
+                    "rising lines, the league improves; lines that rise against some opponents and fall against "
+                    "others, or go up and down, it cycles.")
+NO_EXPLOITABILITY = "No best responses yet: python -m league.exploit --run-dir DIR --player NAME trains them."
+
+
+def payoff_grid(data: ReportData) -> np.ndarray:
+    grid = np.full((len(data.attackers), len(data.teams)), np.nan)
+    for i, a in enumerate(data.attackers):
+        for j, t in enumerate(data.teams):
+            wins, games = data.payoff.get((a.id, t.id), (0, 0))
+            if games:
+                grid[i, j] = wins / games
+    return grid

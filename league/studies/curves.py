@@ -1,0 +1,68 @@
+"""Learning curves of several runs of one config (seeds): their plot and a summary table
+(``python -m league.curves --run-dirs A B C --out DIR``; ``league.reproduce`` per method)."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from league.evaluation.learning_curves import Curve, GameStats, read_curves
+from league.reports.plots import plot_curves, quantities
+from league.state.run_dir import open_run
+
+
+def summary_table(groups: list[list[Curve]], run_names: list[str], terminal_reward: float) -> str:
+    """Markdown: each group's last point per run, its mean, and the reference values (means over runs)."""
+    lines = []
+    for group in groups:
+        learner, opponent = group[0].learner, group[0].opponent
+        lines += [f"### {learner.name} vs {opponent.name}", "",
+                  "| run | env steps | win rate | 95% interval | " + " | ".join(q.title for q in quantities(learner)[1:]) + " |",
+                  "| --- | --- | --- | --- | " + " | ".join("---" for _ in quantities(learner)[1:]) + " |"]
+        for name, curve in zip(run_names, group):
+            last = curve.stats[-1]
+            low, high = last.win_interval(learner.side)
+            others = " | ".join(f"{q.value(last, curve.learner, terminal_reward):.3f}" for q in quantities(learner)[1:])
+            lines.append(f"| {name} | {curve.env_steps[-1]:,} | {last.win_rate(learner.side):.3f} | [{low:.3f}, {high:.3f}] | {others} |")
+        refs: dict[str, list[GameStats]] = defaultdict(list)
+        for curve in group:
+            for kind, name, stats in curve.references:
+                refs["untrained (version 0)" if kind == "untrained" else name].append(stats)
+        for name, stats in sorted(refs.items()):
+            values = " | ".join(
+                f"{np.mean([q.value(s, learner, terminal_reward) for s in stats]):.3f}" for q in quantities(learner)[1:]
+            )
+            rate = np.mean([s.win_rate(learner.side) for s in stats])
+            lines.append(f"| reference: {name} | | {rate:.3f} | | {values} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def study(run_dirs: list[Path], out: Path) -> tuple[Path, Path]:
+    """Curves of several runs of one config: ``OUT/curves.png`` and ``OUT/curves.md``."""
+    per_run: list[dict[tuple[str, str], Curve]] = []
+    configs = []
+    for run_dir in run_dirs:
+        run, store = open_run(run_dir)
+        try:
+            per_run.append({(c.learner.name, c.opponent.name): c for c in read_curves(store)})
+        finally:
+            store.close()
+        configs.append(run)
+    keys = [k for k in per_run[0] if all(k in curves for curves in per_run)]
+    if not keys:
+        raise ValueError(f"the runs have no learning curve in common ({', '.join(map(str, run_dirs))})")
+    terminal = {run.game.terminal_reward for run in configs}
+    if len(terminal) > 1:
+        raise ValueError(f"the runs use different terminal rewards {sorted(terminal)}: not one config")
+    groups = [[curves[k] for curves in per_run] for k in keys]
+    out.mkdir(parents=True, exist_ok=True)
+    (reward,) = terminal
+    names = [Path(d).name for d in run_dirs]
+    plot_curves(groups, reward, f"{configs[0].name}: {len(run_dirs)} runs", out / "curves.png")
+    text = f"# Learning curves of {len(run_dirs)} runs\n\nRuns: {', '.join(map(str, run_dirs))}. " \
+           f"Last point of each run; references are means over the runs.\n\n" + summary_table(groups, names, reward)
+    (out / "curves.md").write_text(text)
+    return out / "curves.png", out / "curves.md"
