@@ -43,7 +43,7 @@ from league.evaluation.engine import play_fixed_games, policies_of
 from league.analysis.statistics import wilson_interval
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
-from league.reproduce import finished, train_run
+from league.studies.runs import finished, train_run
 from league.state.run_dir import open_run
 
 ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance")

@@ -6,7 +6,7 @@ under the paper's protocol (phase 1: against the scripted team) with
 writes per variant and budget ``OUT/VARIANT/BUDGET/table1.md`` (per-seed win rates, their
 mean with a bootstrap 95% interval over seeds, the paper's numbers, and from the learning
 curves each attacker's return under its own method next to the best scripted
-attacker's) and ``OUT/VARIANT/BUDGET/curves-methodM/`` (``league.curves`` over the seeds).
+attacker's) and ``OUT/VARIANT/BUDGET/curves-methodM/`` (``league.studies.curves`` over the seeds).
 
 * Budgets: ``--episodes N ...`` and ``--env-steps N ...``, each value one budget
   (default: ``--episodes 10000``, the paper's).
@@ -30,177 +30,14 @@ Exit codes: 0 done; 2 a bad argument, or a run directory another process is trai
 from __future__ import annotations
 
 import argparse
-import shutil
 import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
-from league.analysis.statistics import bootstrap_interval
-from league.core.payoff import aggregate
-from league.report import PAPER_TABLE_1
-from league.state.run_dir import RunDirError, lock_run
-from league.state.store import LeagueStore
-
-def attacker_win_rate(run_dir: Path, method: int) -> tuple[float, int]:
-    """Evaluation win rate of ``attacker-m{method}-v1`` against the paper's scripted team."""
-    store = LeagueStore(run_dir)
-    try:
-        attacker = next(
-            p for p in store.players(side="attacker", kind="snapshot") if p.reward_method == method and p.version == 1
-        )
-        team = next(p for p in store.players(side="team", kind="scripted") if p.is_paper_team)
-        wins, games = aggregate(store.newest_evaluation_rows())[(attacker.id, team.id)]
-    finally:
-        store.close()
-    return wins / games, games
-
-
-@dataclass(frozen=True)
-class Budget:
-    """A phase budget: ``kind`` is ``episodes`` or ``env_steps``."""
-
-    kind: str
-    amount: int
-
-    @property
-    def label(self) -> str:
-        return f"{self.kind.replace('_', '-')}-{self.amount}"
-
-    def describe(self) -> str:
-        return f"{self.amount:,} {self.kind.replace('_', ' ')}"
-
-
-@dataclass(frozen=True)
-class Job:
-    variant: str
-    budget: Budget
-    method: int
-    seed: int
-    run_dir: Path
-    overrides: tuple[str, ...]
-
-
-def phases_override(budget: Budget, team: bool) -> str:
-    phases = [f"{{learner: attacker, {budget.kind}: {budget.amount}}}"]
-    if team:
-        phases.append(f"{{learner: team, {budget.kind}: {budget.amount}, opponents: latest}}")
-    return f"league.phases=[{', '.join(phases)}]"
-
-
-def finished(run_dir: Path) -> bool:
-    """A run whose training and final evaluation completed (``evaluation.md`` is written last)."""
-    return (run_dir / "evaluation.md").exists()
-
-
-def resumable(run_dir: Path) -> bool:
-    checkpoints = run_dir / "checkpoints"
-    return (run_dir / "league.db").exists() and checkpoints.is_dir() and any(
-        not p.name.endswith(".partial") for p in checkpoints.glob("iter_*")
-    )
-
-
-def train(job: Job, log: Path | None) -> None:
-    """Train ``job`` to the end (``train_run``)."""
-    label = f"{job.variant}, {job.budget.describe()}, method {job.method}, seed {job.seed}"
-    train_run(f"attacker_method{job.method}", job.run_dir, job.overrides, label, log)
-
-
-def say(line: str) -> None:
-    """One line in one write: ``--jobs`` trains from several threads, and ``print`` writes
-    the text and its newline apart (two runs' lines ran together)."""
-    sys.stdout.write(line + "\n")
-    sys.stdout.flush()
-
-
-def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | None = None) -> None:
-    """Train a ``league.run`` to the end: skip it when finished, resume it when it has a
-    checkpoint, else start it from ``config`` with ``overrides`` (``--set`` items)."""
-    if finished(run_dir):
-        say(f"reusing {run_dir} (finished)")
-        return
-    out = open(log, "a") if log else None
-    try:
-        if resumable(run_dir):
-            say(f"resuming {run_dir}")
-            subprocess.run([sys.executable, "-m", "league.run", "--resume", str(run_dir)], stdout=out, stderr=out, check=True)
-            return
-        if run_dir.exists():  # killed before its first checkpoint: nothing to resume
-            lock_run(run_dir).release()  # refuses (RunDirError) while another process trains it
-            shutil.rmtree(run_dir)
-        command = [sys.executable, "-m", "league.run", "--config", config, "--run-dir", str(run_dir)]
-        for item in overrides:
-            command += ["--set", item]
-        say(f"training {label} -> {run_dir}")
-        subprocess.run(command, stdout=out, stderr=out, check=True)
-    finally:
-        if out:
-            out.close()
-
-
-def own_method_returns(run_dir: Path, method: int) -> tuple[float, float, str] | None:
-    """From the learning curves against the paper's team: the attacker's return under its own
-    method at the last point, and the best scripted attacker's on the same games (with the run's
-    terminal reward); ``None`` when the run recorded no curve."""
-    from league.curves import read_curves
-    from league.state.run_dir import open_run
-
-    run, store = open_run(run_dir)
-    try:
-        curves = read_curves(store)
-    finally:
-        store.close()
-    paper_team = "scripted-avoid_attacker+pure_pursuit"
-    curve = next((c for c in curves if c.learner.reward_method == method and c.opponent.name == paper_team), None)
-    if curve is None:
-        return None
-    reward = run.game.terminal_reward
-    scripted = [(stats.attacker_return(method, reward), name) for kind, name, stats in curve.references if kind == "scripted"]
-    best, name = max(scripted)
-    return curve.stats[-1].attacker_return(method, reward), best, f"{name.removeprefix('scripted-')}, {curve.stats[-1].games} games"
-
-
-def table(args: argparse.Namespace, variant: str, budget: Budget, jobs: list[Job], wall: float) -> str:
-    rates: dict[int, list[float]] = {}
-    returns: dict[int, list[tuple[float, float, str]]] = {}
-    for job in jobs:
-        rate, games = attacker_win_rate(job.run_dir, job.method)
-        rates.setdefault(job.method, []).append(rate)
-        curve = own_method_returns(job.run_dir, job.method)
-        if curve is not None:
-            returns.setdefault(job.method, []).append(curve)
-    terminal = f"a terminal reward of +-{args.terminal_reward:g}" if variant == "terminal" else "the paper's rewards (no terminal reward)"
-    lines = [
-        f"# Table 1 analogue: {variant}, {budget.describe()}",
-        "",
-        f"Attacker win rate against the paper's scripted team (T to the terminal avoiding A, D pursuing A), "
-        f"{args.evaluation_episodes} fixed evaluation games per seed, {budget.describe()} of training per attacker, "
-        f"{terminal}, {args.seeds} seeds; mean with a bootstrap 95% interval over seeds. "
-        f"Overrides: {args.overrides or 'none'}. Wall time of this invocation (finished runs reused): {wall:.0f} s.",
-        "",
-        "| method | per seed | mean | 95% bootstrap interval | paper (100 rounds) | own-method return per seed "
-        "(last curve point) | best scripted attacker's return |",
-        "| --- | --- | --- | --- | --- | --- | --- |",
-    ]
-    means = {}
-    for method, values in rates.items():
-        low, high = bootstrap_interval(values)
-        means[method] = float(np.mean(values))
-        per_seed = ", ".join(f"{v:.3f}" for v in values)
-        own = ", ".join(f"{r:.2f}" for r, _, _ in returns.get(method, [])) or "no curves"
-        best = returns[method][0] if returns.get(method) else None
-        scripted = f"{best[1]:.2f} ({best[2]})" if best else ""
-        lines.append(
-            f"| {method} | {per_seed} | {means[method]:.3f} | [{low:.3f}, {high:.3f}] | {PAPER_TABLE_1[method]} | {own} | {scripted} |"
-        )
-    order = " > ".join(f"method {m}" for m in sorted(means, key=lambda m: -means[m]))
-    lines += ["", f"Ordering here: {order}. The paper's: method 2 > method 3 > method 1."]
-    return "\n".join(lines) + "\n"
-
+from league.state.run_dir import RunDirError
+from league.studies.table_one import Budget, Job, phases_override, table, train
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
@@ -261,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 1
     wall = time.perf_counter() - started
-    from league.curves import study
+    from league.studies.curves import study
 
     for variant in args.variants:
         for budget in budgets:

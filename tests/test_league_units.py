@@ -258,7 +258,7 @@ def test_rollback_forgets_later_iterations(tmp_path):
 
 
 def test_reproduce_reads_the_newest_evaluation_of_the_paper_team(tmp_path):
-    from league.reproduce import attacker_win_rate
+    from league.studies.table_one import attacker_win_rate
 
     store = LeagueStore(tmp_path, create=True)
     with store.transaction():

@@ -9,7 +9,7 @@ import time
 import pytest
 
 from league.config import load_config
-from league.reproduce import Budget, phases_override
+from league.studies.table_one import Budget, phases_override
 from league.state.run_dir import lock_holder
 from league.state.store import LeagueStore
 

@@ -1,0 +1,55 @@
+"""Training runs of a study to their end, restartable: a finished run is reused, an unfinished one resumed
+from its last checkpoint, a new one started (each as ``python -m league.run`` in its own process)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from league.state.run_dir import lock_run
+
+
+def finished(run_dir: Path) -> bool:
+    """A run whose training and final evaluation completed (``evaluation.md`` is written last)."""
+    return (run_dir / "evaluation.md").exists()
+
+
+def resumable(run_dir: Path) -> bool:
+    checkpoints = run_dir / "checkpoints"
+    return (run_dir / "league.db").exists() and checkpoints.is_dir() and any(
+        not p.name.endswith(".partial") for p in checkpoints.glob("iter_*")
+    )
+
+
+def say(line: str) -> None:
+    """One line in one write: ``--jobs`` trains from several threads, and ``print`` writes
+    the text and its newline apart (two runs' lines ran together)."""
+    sys.stdout.write(line + "\n")
+    sys.stdout.flush()
+
+
+def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | None = None) -> None:
+    """Train a ``league.run`` to the end: skip it when finished, resume it when it has a
+    checkpoint, else start it from ``config`` with ``overrides`` (``--set`` items)."""
+    if finished(run_dir):
+        say(f"reusing {run_dir} (finished)")
+        return
+    out = open(log, "a") if log else None
+    try:
+        if resumable(run_dir):
+            say(f"resuming {run_dir}")
+            subprocess.run([sys.executable, "-m", "league.run", "--resume", str(run_dir)], stdout=out, stderr=out, check=True)
+            return
+        if run_dir.exists():  # killed before its first checkpoint: nothing to resume
+            lock_run(run_dir).release()  # refuses (RunDirError) while another process trains it
+            shutil.rmtree(run_dir)
+        command = [sys.executable, "-m", "league.run", "--config", config, "--run-dir", str(run_dir)]
+        for item in overrides:
+            command += ["--set", item]
+        say(f"training {label} -> {run_dir}")
+        subprocess.run(command, stdout=out, stderr=out, check=True)
+    finally:
+        if out:
+            out.close()
