@@ -14,7 +14,6 @@ protocol can.
 
 from __future__ import annotations
 
-import argparse
 import base64
 import fcntl
 import json
@@ -27,6 +26,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from league.cli import command_parser
 
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome")
 FLAGS = [
@@ -178,7 +179,7 @@ def check_page(page: Path, chromium: str, settle_seconds: float = 3.0, timeout: 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m league.browser_check", description=__doc__.splitlines()[0])
+    parser = command_parser(prog="python -m league.browser_check", description=__doc__.splitlines()[0])
     parser.add_argument("page", type=Path, help="the report's index.html")
     parser.add_argument("--screenshot", type=Path, help="write a PNG of the first trajectory scene here")
     args = parser.parse_args(argv)

@@ -7,12 +7,12 @@ The curves are measured while a run trains (``league.evaluation.learning_curves`
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
+from league.cli import command_parser
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
+    parser = command_parser(
         prog="python -m league.curves",
         description="Learning curves of several runs of one config (seeds): one line per run, their mean, "
         "and the scripted and untrained reference lines; writes OUT/curves.png and OUT/curves.md.",

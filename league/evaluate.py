@@ -11,7 +11,6 @@ evidence), and the ratings of that iteration are refitted with them.
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import sys
@@ -25,6 +24,7 @@ from league.evaluation.results import last_iteration, record_evaluations
 from league.evaluation.tables import format_table, method_table
 from league.analysis.nash import format_meta_game, meta_game, meta_game_players
 from league.analysis.statistics import wilson_interval
+from league.cli import command_parser, count
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
 
@@ -53,23 +53,8 @@ def choose(players: list[Player], names: list[str] | None) -> list[Player]:
     return [by_name[n] for n in names]
 
 
-def count(minimum: int):
-    """An argparse type: an integer of at least ``minimum``."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
-        return value
-
-    return parse
-
-
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m league.evaluate", description=__doc__.splitlines()[0])
+    parser = command_parser(prog="python -m league.evaluate", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
     parser.add_argument("--episodes", type=count(1), help="fixed games per pair (default: the run's evaluation.episodes)")
     parser.add_argument("--players", nargs="+", help="player names (default: every snapshot and scripted player)")

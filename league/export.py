@@ -20,7 +20,6 @@ ONNX ``metadata_props``): observation and action layout, game parameters, player
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import sys
@@ -36,6 +35,7 @@ from envs.single import action_space, observation_space
 from league.core.players import POOL_KINDS, Player
 from league.state.run_dir import RunDirError, open_run
 from league.state.store import LeagueStore
+from league.cli import command_parser
 
 METADATA_FILE = "metadata.json"
 FORMATS = ("export", "torchscript", "onnx")
@@ -176,7 +176,7 @@ def _write(policy: ExportedPolicy, info: dict[str, Any], fmt: str, example: torc
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m league.export", description=__doc__.splitlines()[0])
+    parser = command_parser(prog="python -m league.export", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
     parser.add_argument("--player", required=True, help="player id or name, latest-attacker or latest-team")
     parser.add_argument("--format", choices=FORMATS, default="torchscript")

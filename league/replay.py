@@ -10,12 +10,11 @@ named after the pair: ``replay-ATTACKER-vs-TEAM-gameK.html`` and ``.png``.
 
 from __future__ import annotations
 
-import argparse
 import html
 import sys
 from pathlib import Path
 
-from league.evaluate import count
+from league.cli import command_parser, count
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
 
@@ -29,7 +28,7 @@ def find_player(players: list[Player], name: str, side: str) -> Player:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m league.replay", description=__doc__.splitlines()[0])
+    parser = command_parser(prog="python -m league.replay", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
     parser.add_argument("--attacker", required=True, help="an attacker of the league (league.status lists them)")
     parser.add_argument("--team", required=True, help="a team of the league")

@@ -20,11 +20,11 @@ evaluation of the run's last iteration (as ``league.evaluate`` records its games
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 from league.state.run_dir import RunDirError, open_run
+from league.cli import command_parser
 
 
 def build_report(run_dir: Path) -> Path:
@@ -57,7 +57,7 @@ def build_report(run_dir: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m league.report", description=__doc__.splitlines()[0])
+    parser = command_parser(prog="python -m league.report", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
     args = parser.parse_args(argv)
     try:

@@ -38,9 +38,10 @@ from pathlib import Path
 
 from league.state.run_dir import RunDirError
 from league.studies.table_one import Budget, Job, phases_override, table, train
+from league.cli import command_parser
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
+    parser = command_parser(
         prog="python -m league.reproduce", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--seeds", type=int, default=3)

@@ -51,10 +51,11 @@ from league.state.run_dir import (
 )
 from league.training.stop import StopRequests, Stopped
 from league.state.store import DB_NAME, LeagueStore
+from league.cli import command_parser
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="python -m league.run", description=__doc__.splitlines()[0])
+    parser = command_parser(prog="python -m league.run", description=__doc__.splitlines()[0])
     parser.add_argument("--config", help="YAML file, or a name in configs/ (smoke, attacker_method2, ...)")
     parser.add_argument("--run-dir", type=Path, help="where to write the run (default runs/NAME-TIME)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue this run from its last checkpoint")

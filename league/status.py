@@ -5,7 +5,6 @@ Reads only the league database, so it works while ``league.run`` trains.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -18,6 +17,7 @@ from league.analysis.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_gam
 from league.core.payoff import aggregate, player_record
 from league.state.run_dir import RunDirError, open_run, usable_checkpoints
 from league.state.store import LeagueStore
+from league.cli import command_parser
 
 
 def league_table(store: LeagueStore, source: str | None = None) -> Table:
@@ -123,7 +123,7 @@ def run_line(store: LeagueStore) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m league.status", description=__doc__.splitlines()[0])
+    parser = command_parser(prog="python -m league.status", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
     parser.add_argument("--source", choices=["training", "evaluation"], help="count only these games")
     parser.add_argument("--json", action="store_true", help="print the same numbers as one JSON object")
