@@ -1,5 +1,10 @@
 """Where things may live: the rules of the layout, checked on the source tree.
 
+SQL only in the store; no import cycles among league's modules or packages; no module
+imports a command (the modules at the top of ``league/`` with a ``__main__`` block);
+``league/core/`` without Ray or torch; ``ray.rllib`` only in ``league/rllib/``; who won
+only in ``league/core/payoff.py``; the README's layout table lists the tree.
+
 Each rule is a scan of the source files (``envs/``, ``league/``, ``bench/``) and a test
 that the scan finds a planted violation, so a rule that stopped matching would fail.
 Tests themselves are not scanned: they read ``league.db`` with their own SQL on
@@ -8,6 +13,7 @@ purpose, as a check of what is on disk that does not go through the store's code
 
 from __future__ import annotations
 
+import ast
 import re
 from pathlib import Path
 
@@ -70,3 +76,247 @@ def test_the_package_version_is_pyprojects():
     import league
 
     assert league.__version__ == tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+
+
+# ---------------------------------------------------------------- the import graph of league/
+def module_name(root: Path, path: Path) -> str:
+    parts = path.relative_to(root).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def league_modules(root: Path) -> dict[str, Path]:
+    return {module_name(root, p): p for p in sorted((root / "league").rglob("*.py"))}
+
+
+def imports_of(path: Path, modules: set[str]) -> set[str]:
+    """Every module ``path`` imports, at module level or inside a function; ``from P import m``
+    counts as importing ``P.m`` where that is a module."""
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.add(node.module)
+            found |= {f"{node.module}.{alias.name}" for alias in node.names if f"{node.module}.{alias.name}" in modules}
+    return found
+
+
+def import_graph(root: Path) -> dict[str, set[str]]:
+    """League module -> the league modules it imports (a package's ``__init__`` counts only when named)."""
+    modules = league_modules(root)
+    return {name: (imports_of(path, set(modules)) & set(modules)) - {name} for name, path in modules.items()}
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one node (Tarjan): each holds a cycle."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for other in sorted(graph.get(node, ())):
+            if other not in index:
+                visit(other)
+                low[node] = min(low[node], low[other])
+            elif other in stack:
+                low[node] = min(low[node], index[other])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return found
+
+
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """The same edges between ``league``'s sub-packages (a top-level module is its own node)."""
+
+    def package(name: str) -> str:
+        return ".".join(name.split(".")[:2])
+
+    packages: dict[str, set[str]] = {}
+    for name, imported in graph.items():
+        packages.setdefault(package(name), set()).update(package(i) for i in imported if package(i) != package(name))
+    return packages
+
+
+def commands(root: Path) -> set[str]:
+    """The commands: modules at the top of ``league/`` run as ``python -m league.NAME``."""
+    return {module_name(root, p) for p in (root / "league").glob("*.py") if MAIN_BLOCK.search(p.read_text())}
+
+
+MAIN_BLOCK = re.compile(r'^if __name__ == ["\']__main__["\']:', re.MULTILINE)
+
+
+def command_imports(root: Path) -> list[str]:
+    """``importer -> command`` for every import of a command by a library module or by another command."""
+    graph, run_as_commands = import_graph(root), commands(root)
+    return sorted(f"{name} -> {i}" for name, imported in graph.items() for i in imported if i in run_as_commands)
+
+
+def test_no_import_cycles_among_modules_or_packages():
+    graph = import_graph(ROOT)
+    assert len(graph) > 40 and "league.rllib.bridge" in graph["league.training.coordinator"]
+    assert cycles(graph) == []
+    assert cycles(package_graph(graph)) == []
+
+
+def test_the_cycle_scan_finds_a_planted_circle(tmp_path):
+    root = plant(tmp_path, {
+        "league/__init__.py": "",
+        "league/analysis/__init__.py": "",
+        "league/reports/__init__.py": "",
+        "league/analysis/exploitability.py": "def interval():\n    from league.reproduce import bootstrap_interval\n",
+        "league/reproduce.py": "from league.reports.data import PAPER_TABLE_1\n",
+        "league/reports/data.py": "from league.analysis import exploitability\n",
+        "league/reports/plots.py": "from league.reports.data import PAPER_TABLE_1\n",  # within a package: fine
+    })
+    assert cycles(import_graph(root)) == [["league.analysis.exploitability", "league.reports.data", "league.reproduce"]]
+    assert cycles(package_graph(import_graph(root))) == [["league.analysis", "league.reports", "league.reproduce"]]
+
+
+def test_no_module_imports_a_command():
+    assert commands(ROOT) >= {"league.run", "league.status", "league.report", "league.exploit", "league.curves"}
+    assert not commands(ROOT) & {"league.cli", "league.config"}
+    assert command_imports(ROOT) == []
+
+
+def test_the_command_scan_finds_a_planted_import(tmp_path):
+    root = plant(tmp_path, {
+        "league/evaluate.py": 'def count(n):\n    return n\n\nif __name__ == "__main__":\n    pass\n',
+        "league/replay.py": 'from league.evaluate import count\nif __name__ == "__main__":\n    pass\n',
+        "league/training/coordinator.py": "def table():\n    from league.evaluate import count\n",
+        "league/cli.py": "def count(n):\n    return n\n",
+        "league/exploit.py": 'from league.cli import count\nif __name__ == "__main__":\n    pass\n',  # fine
+    })
+    assert command_imports(root) == ["league.replay -> league.evaluate", "league.training.coordinator -> league.evaluate"]
+
+
+# ---------------------------------------------------------------- who may import what outside league/
+def external_imports(root: Path, prefix: str, under: str) -> list[str]:
+    """``module: import`` of every import of ``prefix`` (or below it) by a module of ``league/`` outside ``under``,
+    or, for ``under`` ending in ``!``, by a module inside it."""
+    inside = under.endswith("!")
+    under = under.rstrip("!")
+    found = []
+    for name, path in league_modules(root).items():
+        if (name == under or name.startswith(under + ".")) != inside:
+            continue
+        for imported in imports_of(path, set()):
+            if imported == prefix or imported.startswith(prefix + "."):
+                found.append(f"{name}: {imported}")
+    return sorted(found)
+
+
+def test_core_imports_neither_ray_nor_torch():
+    graph = import_graph(ROOT)
+    core = {name for name in graph if name.startswith("league.core")}
+    reached = set(core)
+    while True:  # and nor does any league module core imports
+        more = {i for name in reached for i in graph[name]} - reached
+        if not more:
+            break
+        reached |= more
+    found = [hit for library in ("ray", "torch") for name in sorted(reached)
+             for hit in external_imports(ROOT, library, name + "!")]
+    assert "league.core.payoff" in reached and found == []
+
+
+def test_only_the_rllib_package_imports_ray_rllib():
+    assert external_imports(ROOT, "ray.rllib", "league.rllib!") != []
+    assert external_imports(ROOT, "ray.rllib", "league.rllib") == []
+
+
+def test_the_import_scans_find_planted_imports(tmp_path):
+    root = plant(tmp_path, {
+        "league/core/payoff.py": "import numpy as np\n\ndef fit():\n    import torch\n",
+        "league/core/pfsp.py": "from ray import tune\n",
+        "league/rllib/bridge.py": "from ray.rllib.algorithms.ppo import PPO\n",
+        "league/training/coordinator.py": "from ray.rllib.core.columns import Columns\nimport ray\n",
+    })
+    assert external_imports(root, "torch", "league.core!") == ["league.core.payoff: torch"]
+    assert external_imports(root, "ray", "league.core!") == ["league.core.pfsp: ray"]
+    assert external_imports(root, "ray.rllib", "league.rllib") == ["league.training.coordinator: ray.rllib.core.columns"]
+
+
+# ---------------------------------------------------------------- who won
+# The flip of a result to one side's point of view, and the outcome labels the attacker wins:
+# games minus the attacker's wins, "attacker" chosen by the attacker's win, a set of winning labels.
+WHO_WON = re.compile(
+    r"-\s*[\w.]*attacker_wins\b|[\"']attacker[\"']\s+if\s+[\w.]*attacker_w[io]n"
+    r"|\bATTACKER_WINS\s*=|\bin\s+ATTACKER_WINS\b|\bdef\s+(attacker_won|wins_of|winner)\b"
+)
+WHO_WON_HOME = "league/core/payoff.py"
+
+
+def who_won_copies(root: Path) -> list[str]:
+    return [v for v in violations(root, WHO_WON, {WHO_WON_HOME}) if not v.startswith("envs/")]  # envs: the game's rules
+
+
+def test_who_won_only_in_payoff():
+    assert who_won_copies(ROOT) == []
+
+
+def test_the_who_won_scan_finds_the_old_copies(tmp_path):
+    root = plant(tmp_path, {
+        WHO_WON_HOME: 'ATTACKER_WINS = frozenset(("captured", "timeout"))\n',
+        "league/curves.py": 'wins = self.attacker_wins if side == "attacker" else self.games - self.attacker_wins\n',
+        "league/exploit.py": 'wins = played.attacker_wins if side == "attacker" else played.games - played.attacker_wins\n',
+        "league/analysis/generations.py": 'wins.append(attacker_wins if side == "attacker" else n - attacker_wins)\n',
+        "league/replay.py": 'won = "attacker" if outcome.attacker_wins else "team"\n',
+        "bench/league_quality.py": 'wins = attacker_wins if side == "attacker" else args.episodes - attacker_wins\n',
+        "league/status.py": 'wins, games = record_against(payoff, side, player, opponent)\n',  # asks payoff: fine
+        "envs/agents.py": "def attacker_wins(self):\n    return self in (CAPTURED, TIMEOUT)\n",  # the game's own rule
+    })
+    assert [v.split(":")[0] for v in who_won_copies(root)] == [
+        "bench/league_quality.py", "league/analysis/generations.py", "league/curves.py", "league/exploit.py",
+        "league/replay.py",
+    ]
+
+
+# ---------------------------------------------------------------- the README's layout table
+LAYOUT_PATH = re.compile(r"`(league/[\w/]*(?:\.py|/))`")
+
+
+def layout_table_paths(readme: str) -> set[str]:
+    """The ``league/`` paths named in the first cell of the rows of the README's "Layout" table."""
+    section = readme.split("\n## Layout\n", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in section.splitlines() if line.startswith("| ")]
+    return {path for row in rows for path in LAYOUT_PATH.findall(row.split(" | ")[0])}
+
+
+def tree_paths(root: Path) -> set[str]:
+    """``league``'s modules and sub-packages (``league/core/``), as the layout table names them."""
+    paths = set()
+    for path in (root / "league").rglob("*.py"):
+        relative = path.relative_to(root).as_posix()
+        package = path.name == "__init__.py" and path.parent != root / "league"
+        paths.add(relative.removesuffix("__init__.py") if package else relative)
+    return paths
+
+
+def test_the_readme_layout_table_lists_the_tree():
+    assert layout_table_paths((ROOT / "README.md").read_text()) == tree_paths(ROOT)
+
+
+def test_the_layout_scan_finds_a_missing_and_a_stale_row(tmp_path):
+    root = plant(tmp_path, {
+        "league/__init__.py": "", "league/run.py": "", "league/core/__init__.py": "", "league/core/payoff.py": "",
+        "league/core/pfsp.py": "",
+        "README.md": "# x\n\n## Layout\n\n| path | what |\n| --- | --- |\n| `league/run.py` | trains |\n"
+                     "| `league/__init__.py` | the package |\n| `league/core/` | decisions |\n| `league/core/payoff.py`, `league/payoff.py` | who won |\n"
+                     "\n## Next\n\n`league/core/pfsp.py` in prose does not count\n",
+    })
+    listed, tree = layout_table_paths((root / "README.md").read_text()), tree_paths(root)
+    assert tree - listed == {"league/core/pfsp.py"} and listed - tree == {"league/payoff.py"}
