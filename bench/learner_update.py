@@ -10,7 +10,7 @@ configured), each from the same weights and optimizer state:
   Learner updated before it had an update of its own;
 * ``league``: ``LeaguePPOLearner.update`` (its Adam steps in foreach passes).
 
-Both take the same gradient steps (``tests/test_fast_path.py``); one process runs both, so
+Both take the same gradient steps (``tests/rllib/test_fast_path.py``); one process runs both, so
 a shared machine's load moves both alike.
 
     PYTHONPATH=. .venv/bin/python bench/learner_update.py --config attacker_method2 --rounds 8

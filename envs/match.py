@@ -3,7 +3,7 @@
 A *controller* picks one agent's actions: anything with ``act(game) -> (N, 2)``, such as
 ``envs.scripted.ScriptedPlayer`` or a learned policy wrapped by the caller. The league's
 evaluation plays its games with the rollout (``league.rollout.games``), which gives the same
-outcomes on the same games (``tests/test_head_to_head.py``).
+outcomes on the same games (``tests/evaluation/test_engine.py``).
 
 ``python -m envs.match --episodes 1000`` prints the scripted-vs-scripted win rates.
 """

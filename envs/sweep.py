@@ -23,7 +23,7 @@ Guarantee: a pair whose paths come within ``radius - 2 TOLERANCE`` is always rep
 that stays farther than ``radius + 2 TOLERANCE`` never is; at the reported time the true
 distance is within ``TOLERANCE`` of the radius, and no earlier time in the step has it below
 ``radius - 2 TOLERANCE``. A pair already within the radius at the start reports 0.
-``tests/test_sweep.py`` checks this against thousands of sub-steps.
+``tests/envs/test_sweep.py`` checks this against thousands of sub-steps.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 RLlib's public API has no way to do what these functions do; each says what it reads or
 writes and why the league needs it. No other module touches a private RLlib attribute or
-writes an episode's internals (``tests/test_rllib_compat.py`` checks both, and pins the
+writes an episode's internals (``tests/rllib/test_compat.py`` checks both, and pins the
 Ray version): on a Ray upgrade, read this module against the new RLlib source first.
 """
 

@@ -7,7 +7,7 @@ its connector pipelines on every step. ``BatchedEnvRunner`` keeps everything els
 call of ``envs.vector_env`` and one forward pass per module over every (game, agent) it
 plays); this class turns the rollout's rows into what RLlib wants. Episodes reach the Learner as
 ``MultiAgentEpisode`` chunks built from the arrays, with the observations, actions,
-rewards, infos and model outputs of the standard path (``tests/test_batched_sampler.py``
+rewards, infos and model outputs of the standard path (``tests/rllib/test_batched_sampler.py``
 plays both side by side).
 
 Differences, all for speed:

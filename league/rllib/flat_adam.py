@@ -13,7 +13,7 @@ the remainder (its size modulo the loop's stride) one at a time, and the two pat
 differently (fused multiply-add). Only tensors whose size is a multiple of ``CHUNK`` go into
 the buffer, so none of their numbers is a remainder in either layout; the others (the
 3-number log standard deviation, the last layers' biases) stay tensors of their own.
-``tests/test_fast_path.py`` checks the weights after an update equal to the bit with RLlib's.
+``tests/rllib/test_fast_path.py`` checks the weights after an update equal to the bit with RLlib's.
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ class LeaguePPOLearner(PPOTorchLearner):
     from NumPy's global generator), RLlib's PPO loss operation for operation
     (``league.rllib.ppo_loss``), the same backward pass, clipping by global norm and Adam step,
     the same steps counted, then RLlib's ``after_gradient_based_update`` (lr, entropy and KL
-    coefficients). ``tests/test_fast_path.py`` checks the weights equal to the bit and the
+    coefficients). ``tests/rllib/test_fast_path.py`` checks the weights equal to the bit and the
     results equal to RLlib's update. Cheaper:
 
     * a minibatch is one ``index_select`` of the loss's columns side by side

@@ -12,7 +12,7 @@ RLlib's ``TorchDiagGaussian`` gets them from ``torch.distributions.Normal``, wri
 
 The same operations in the same order give the same gradients to the bit: autograd adds
 the gradients that reach one tensor in the order the graph was built, so the terms are
-built in RLlib's order (``tests/test_fast_path.py`` checks the weights after an update
+built in RLlib's order (``tests/rllib/test_fast_path.py`` checks the weights after an update
 equal to RLlib's). What is left out: RLlib's distribution objects and forward wrappers,
 and the statistics, which ``loss_stats`` computes only for the minibatch whose statistics
 are reported.

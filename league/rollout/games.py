@@ -18,7 +18,7 @@ pass) or, for scripted players, by ``ScriptedOnState`` (they act on the games' e
 Used by the RLlib env runner (``league.rllib.env_runner``, which turns the rows into
 episodes or PPO's training batch), by evaluation (``league.evaluation.engine``: frozen players on
 the fixed games) and by the plain-PyTorch PPO bench (``bench/plain_ppo.py``);
-``tests/test_rollout.py`` runs it without Ray.
+``tests/rollout/test_games.py`` runs it without Ray.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ game, not a truncation (``envs``), so nothing is bootstrapped after it.
 This is the computation of RLlib's ``GeneralAdvantageEstimation`` learner connector on
 the same steps, with one difference: advantages are standardised over the real steps
 only (RLlib also counts the extra bootstrap step it appends to every chunk, whose
-advantage is 0), as CleanRL's PPO does. ``tests/test_fast_path.py`` checks the two.
+advantage is 0), as CleanRL's PPO does. ``tests/rllib/test_fast_path.py`` checks the two.
 
 ``minibatch_rows`` is the order in which RLlib's Learner passes over such a batch, for a
 Learner that slices the arrays itself (``league.rllib.learner.LeaguePPOLearner``).

@@ -17,7 +17,7 @@ from envs.scenarios import evaluation_scenarios
 from league.export import main as export_main
 from league.evaluation.engine import LearnedAgent, load_module
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

@@ -68,7 +68,7 @@ def test_method3_corrected_branches(lambda_prev, lambda_now, count, expected_rew
 
 
 def test_method3_corrected_in_the_core():
-    # A flies away from T (the case of tests/test_rewards.py): lambda 3.6 -> 4.716, |dl| = 1.116,
+    # A flies away from T (the case of tests/envs/test_rewards.py): lambda 3.6 -> 4.716, |dl| = 1.116,
     # so the corrected reward is -(min(2.232, 1) + 1.08 ** 1) * 10 / 16 = -1.3.
     game = BatchedGame(GameConfig(attacker_reward=3, method3_variant="corrected"), 1)
     game.reset(positions=np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 5.0, 0.0]]]))

@@ -35,7 +35,7 @@ evaluation: {{episodes: 4, workers: 0}}
 checkpoint_every: 1
 """
 RUN_TIMEOUT = 600
-PYTHON_PATH = str(Path(__file__).resolve().parent.parent)
+PYTHON_PATH = str(Path(__file__).resolve().parents[2])
 
 
 @pytest.fixture

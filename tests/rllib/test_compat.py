@@ -17,7 +17,7 @@ import tokenize
 import ray
 
 from league.rllib import compat as rllib_compat
-from test_layering import ROOT, plant, source_files
+from tests.test_layering import ROOT, plant, source_files
 
 COMPAT = "league/rllib/compat.py"
 ADAPTER = {"league/rllib/bridge.py", "league/rllib/algorithm.py"}  # the adapter and its algorithm

@@ -8,7 +8,7 @@ import pytest
 
 from league.config import load_config
 
-SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "league_quality.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "league_quality.py"
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ TINY_SMOKE = [
     "--set", "league.phase_env_steps=3072", "--set", "league.selfplay_phases=2",
     "--set", "evaluation.episodes=20", "--set", "evaluation.curve_episodes=20",
     "--set", "evaluation.curve_every_env_steps=1024",
-    "--set", "evaluation.workers=0",  # the same numbers as on workers (tests/test_head_to_head.py), without their start-up
+    "--set", "evaluation.workers=0",  # the same numbers as on workers (tests/evaluation/test_engine.py), without their start-up
 ]
 RUN_TIMEOUT = 600
 

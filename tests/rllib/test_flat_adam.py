@@ -1,6 +1,6 @@
 """``FlatAdam``: Adam's step of a module's tensors as one buffer gives Adam's numbers to the bit.
 
-``tests/test_fast_path.py`` compares whole updates with RLlib's on small networks, where one
+``tests/rllib/test_fast_path.py`` compares whole updates with RLlib's on small networks, where one
 tensor is flattened; here the shipped networks, where most are.
 """
 
