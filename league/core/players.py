@@ -8,9 +8,9 @@ derived from its columns, never parsed back from names.
 | learner    | the side's learning module (``attacker`` or ``team``)  | yes     |
 | snapshot   | a frozen copy of a learner at some iteration           | no      |
 | scripted   | a scripted player of ``envs.scripted``                 | no      |
-| exploiter  | the side's exploiter (``league.exploiters``): trains in its side's phases against the other side's newest snapshots only | yes |
+| exploiter  | the side's exploiter (config ``league.exploiters``): trains in its side's phases against the other side's newest snapshots only | yes |
 | exploiter_snapshot | a frozen copy of an exploiter, in its side's pool like a snapshot | no |
-| best_response | trained from scratch against one frozen player (its ``parent``) by ``league.exploit``; not in the training pool | no (frozen once trained) |
+| best_response | trained from scratch against one frozen player (its ``parent``) by ``league.training.best_response`` (``python -m league.exploit``); not in the training pool | no (frozen once trained) |
 
 Names: ``attacker-m2``, ``team`` (learners), ``attacker-m2-v3``, ``team-v2`` (snapshots),
 ``attacker-m2-exploiter``, ``team-exploiter-v1`` (exploiters and their snapshots),
