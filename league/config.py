@@ -160,10 +160,9 @@ class ProtocolPhase(Strict):
     env_steps: int | None = Field(None, ge=1)
     """...or, given instead, once this many env steps were sampled in it (a budget that does not
     depend on how long the games last)."""
-    opponents: Literal["scripted", "latest", "pool"] = "scripted"
+    opponents: Literal["scripted", "latest", "scripted_and_latest"] = "scripted"
     """``scripted``: the configured scripted players; ``latest``: the other side's newest snapshot
-    (the paper's phase 2); ``pool``: the scripted players and every snapshot of the other side,
-    weighted by PFSP as in self-play."""
+    (the paper's phase 2); ``scripted_and_latest``: both, weighted by PFSP."""
 
     @model_validator(mode="after")
     def _one_budget(self) -> "ProtocolPhase":
