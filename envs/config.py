@@ -22,7 +22,7 @@ Method2Direction = Literal["chord", "heading"]
 class GameConfig(BaseModel):
     """Everything that defines one game of 3D cooperative target defense."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, use_attribute_docstrings=True)
 
     v_attacker: PositiveFloat = 0.18
     """Distance A moves per step."""

@@ -13,7 +13,8 @@ import difflib
 import hashlib
 import json
 from pathlib import Path
-from typing import Annotated, Any, Literal
+import types
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
@@ -31,18 +32,21 @@ class ConfigError(ValueError):
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, use_attribute_docstrings=True)
 
 
 class PPOSettings(Strict):
     """PPO hyperparameters, shared by the attacker and the team learner."""
 
     lr: float = Field(3e-4, gt=0)
+    """Adam's learning rate (both learners)."""
     lr_schedule: list[tuple[Annotated[int, Field(ge=0)], Annotated[float, Field(gt=0)]]] | None = None
     """``[[env_steps, lr], ...]``, from 0 in increasing env steps: the learning rate interpolated
     linearly over the run's sampled env steps (RLlib's schedule), in place of ``lr``."""
     gamma: float = Field(0.99, gt=0, le=1)
+    """Discount factor (the attacker's, and the team's unless ``team_gamma`` is set)."""
     lambda_: float = Field(0.95, ge=0, le=1)
+    """GAE ``lambda`` (the attacker's, and the team's unless ``team_lambda_`` is set)."""
     team_gamma: float | None = Field(None, gt=0, le=1)
     """Discount of the team learner (T and D); ``None``: ``gamma``. Against lead intercept the
     team loses nearly every game at first and its per-step rewards (Eq. 10, 11) are small next to
@@ -63,11 +67,16 @@ class PPOSettings(Strict):
     team's, the sum of both per step (what the team return measures), so that D is paid for
     the steps of T that its interception saves. Needs ``resources.sampler: fast``."""
     clip_param: float = Field(0.2, gt=0)
+    """PPO's clip range of the probability ratio."""
     entropy_coeff: float = Field(0.0, ge=0)
+    """Weight of the policy's entropy bonus in the loss."""
     vf_loss_coeff: float = Field(0.5, ge=0)
+    """Weight of the value loss in the loss."""
     grad_clip: float | None = Field(0.5, gt=0)
+    """Global gradient norm clip of each update; ``None``: no clipping."""
     train_batch_size: int = Field(4000, ge=32, description="env steps per training iteration")
     minibatch_size: int = Field(500, ge=8)
+    """Rows (or env steps, ``minibatch_counts``) per gradient step."""
     minibatch_counts: Literal["rows", "env_steps"] = "rows"
     """What ``minibatch_size`` counts. ``rows``: training rows, for every learner. ``env_steps``:
     the rows of that many env steps, so the team learner, whose module plays T and D (two rows
@@ -75,6 +84,7 @@ class PPOSettings(Strict):
     rows and takes as many gradient steps per env step as the attacker instead of twice as
     many. Needs ``resources.sampler: fast`` (RLlib's PPO has one minibatch size)."""
     num_epochs: int = Field(5, ge=1)
+    """Passes over each training batch."""
     hidden: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [64, 64], min_length=1)
     """Hidden layer sizes of both the policy and the value network."""
 
@@ -98,9 +108,13 @@ class Resources(Strict):
     (with ``--address`` the cluster's nodes bring their own)."""
 
     num_cpus: int = Field(2, ge=1)
+    """CPUs of the Ray instance this run starts (not used with ``--address``)."""
     num_env_runners: int = Field(0, ge=0)
+    """Remote env runners (Ray actors) that sample; 0: sample in the driver."""
     num_envs_per_env_runner: int = Field(8, ge=1)
+    """Games each env runner steps at once."""
     num_cpus_per_env_runner: float = Field(1, gt=0)
+    """CPUs Ray reserves for each remote env runner."""
     custom_resources_per_env_runner: dict[str, Annotated[float, Field(gt=0)]] = Field(default_factory=dict)
     """Custom Ray resources each env runner needs, e.g. ``{sampler: 1}`` to place runners
     on the nodes started with that resource (``ray start --resources``)."""
@@ -121,8 +135,12 @@ class Resources(Strict):
 
 
 class ScriptedTeam(Strict):
+    """A scripted team: one scripted targeter and one scripted defender."""
+
     targeter: str = PAPER_TEAM["targeter"]
+    """The scripted targeter (``envs.scripted``)."""
     defender: str = PAPER_TEAM["defender"]
+    """The scripted defender (``envs.scripted``)."""
 
     @model_validator(mode="after")
     def _known(self) -> "ScriptedTeam":
@@ -136,13 +154,15 @@ class ProtocolPhase(Strict):
     """One phase of the paper's protocol: one side learns against the other side's pool."""
 
     learner: Side
+    """Which side learns in this phase."""
     episodes: int | None = Field(None, ge=1)
     """The phase ends once its learner has played this many episodes..."""
     env_steps: int | None = Field(None, ge=1)
     """...or, given instead, once this many env steps were sampled in it (a budget that does not
     depend on how long the games last)."""
-    opponents: Literal["scripted", "latest"] = "scripted"
-    """``scripted``: the configured scripted players; ``latest``: the other side's newest snapshot."""
+    opponents: Literal["scripted", "latest", "scripted_and_latest"] = "scripted"
+    """``scripted``: the configured scripted players; ``latest``: the other side's newest snapshot
+    (the paper's phase 2); ``scripted_and_latest``: both, weighted by PFSP."""
 
     @model_validator(mode="after")
     def _one_budget(self) -> "ProtocolPhase":
@@ -152,7 +172,10 @@ class ProtocolPhase(Strict):
 
 
 class LeagueSettings(Strict):
+    """Who is in the league, who learns when, against whom, and when a phase ends."""
+
     mode: Literal["protocol", "selfplay"] = "selfplay"
+    """``protocol``: the paper's phases in order (``phases``); ``selfplay``: alternating phases against the whole pool."""
     phases: list[ProtocolPhase] = Field(default_factory=list)
     """Protocol mode: the phases in order."""
     selfplay_phases: int = Field(6, ge=1)
@@ -184,7 +207,9 @@ class LeagueSettings(Strict):
     its mean (``false``), as every player does in evaluation. ``false`` trains a learner against
     exactly the players it is then measured against. Not on ``resources.sampler: standard``."""
     scripted_attackers: list[str] = Field(default_factory=lambda: ["lead_intercept"])
+    """Scripted attackers in the league (``envs.scripted``): training opponents of the team and members of the meta-game."""
     scripted_teams: list[ScriptedTeam] = Field(default_factory=lambda: [ScriptedTeam()])
+    """Scripted teams (a targeter and a defender each) in the league: training opponents of the attackers and members of the meta-game."""
 
     @field_validator("exploiters")
     @classmethod
@@ -202,7 +227,7 @@ class LeagueSettings(Strict):
                 raise ValueError(f"unknown scripted attacker {name!r}; expected one of {sorted(PLAYERS['attacker'])}")
         if self.mode == "protocol" and not self.phases:
             raise ValueError("protocol mode needs at least one entry in `phases`")
-        if self.mode == "protocol" and self.phases[0].opponents == "latest":
+        if self.mode == "protocol" and self.phases[0].opponents != "scripted":
             raise ValueError("the first protocol phase has no snapshot to play: use opponents: scripted")
         if self.attacker_reward_methods is not None and (
             not self.attacker_reward_methods or len(set(self.attacker_reward_methods)) != len(self.attacker_reward_methods)
@@ -214,11 +239,14 @@ class LeagueSettings(Strict):
 
 
 class EvaluationSettings(Strict):
+    """The fixed evaluation games: the final evaluation, evaluations during training and learning curves."""
+
     episodes: int = Field(1000, ge=1)
     """Fixed seeded games per evaluated pair."""
     workers: int = Field(2, ge=0)
     """Ray actors that play the evaluation games (0: in the driver process)."""
     cpus_per_worker: float = Field(0.5, gt=0)
+    """CPUs Ray reserves for each evaluation worker."""
     custom_resources_per_worker: dict[str, Annotated[float, Field(gt=0)]] = Field(default_factory=dict)
     """Custom Ray resources each evaluation worker needs (workers are spread over the nodes)."""
     every_iterations: int = Field(0, ge=0)
@@ -232,7 +260,10 @@ class EvaluationSettings(Strict):
 
 
 class RunConfig(Strict):
+    """One run: a config file of ``configs/``, its sections below."""
+
     name: str = Field(min_length=1)
+    """The run's name: the prefix of its default run directory (``runs/NAME-TIME``)."""
     seed: int = Field(0, ge=0, lt=2**32)
     """Seeds every generator of the run; RLlib passes it to ``np.random.seed``, hence the bound."""
     game: GameConfig = Field(default_factory=GameConfig)
@@ -390,3 +421,68 @@ def changed_keys(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> 
         elif a != b:
             changed.append(f"{prefix}{key}")
     return changed
+
+
+def _type_name(annotation: Any) -> str:
+    """A key's type as a reader writes it: ``float | None``, ``'fast' | 'batched'``, ``list[str]``."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin is Annotated:
+        return _type_name(args[0])
+    if origin in (Union, types.UnionType):
+        return " | ".join(_type_name(a) for a in args)
+    if origin is Literal:
+        return " | ".join(repr(a) for a in args)
+    if origin in (list, dict, tuple):
+        return f"{origin.__name__}[{', '.join(_type_name(a) for a in args)}]"
+    return "None" if annotation is type(None) else getattr(annotation, "__name__", str(annotation))
+
+
+def _sections(model: type[BaseModel], prefix: str) -> list[tuple[str, type[BaseModel]]]:
+    """``(dotted key, model)`` of ``model`` and every section below it, lists of sections included."""
+    found = [(prefix, model)]
+    for name, field in model.model_fields.items():
+        inner = field.annotation
+        listed = getattr(inner, "__origin__", None) is list
+        if listed:
+            inner = inner.__args__[0]
+        if isinstance(inner, type) and issubclass(inner, BaseModel):
+            found += _sections(inner, f"{prefix}{name}{'[]' if listed else ''}.")
+    return found
+
+
+def undocumented_fields(model: type[BaseModel] = RunConfig) -> list[str]:
+    """Dotted keys of every config key without a field docstring (the reference would leave them blank)."""
+    return [
+        f"{prefix}{name}"
+        for prefix, section in _sections(model, "")
+        for name, field in section.model_fields.items()
+        if not (field.description or "").strip() and not _is_section(field)
+    ]
+
+
+def _is_section(field: Any) -> bool:
+    return isinstance(field.annotation, type) and issubclass(field.annotation, BaseModel)
+
+
+def reference_markdown(model: type[BaseModel] = RunConfig) -> str:
+    """Every config key with its type, default and docstring, one table per section (``docs/configuration.md``)."""
+    out = [
+        "# Configuration reference",
+        "",
+        "Every key of a run config (`configs/*.yaml`), generated from the pydantic models of",
+        "`league/config.py` and `envs/config.py` (`tests/test_config_reference.py` fails when this page and",
+        "the code differ; regenerate with `python -m league.config_reference > docs/configuration.md`).",
+        "Unknown keys are errors; `--set key.sub=value` overrides any key from the command line.",
+    ]
+    for prefix, section in _sections(model, ""):
+        out += ["", f"## `{prefix.rstrip('.') or '(top level)'}`", "", " ".join((section.__doc__ or "").split()), "",
+                "| key | type | default | meaning |", "| --- | --- | --- | --- |"]
+        for name, field in section.model_fields.items():
+            if _is_section(field):
+                out.append(f"| `{name}` | section | | [`{prefix}{name}`](#{prefix.replace('.', '')}{name}) below |")
+                continue
+            default = "required" if field.is_required() else repr(field.get_default(call_default_factory=True))
+            meaning = " ".join((field.description or "").split()).replace("|", "\\|")
+            kind = _type_name(field.annotation).replace("|", "\\|")  # GitHub tables split cells on | even in code
+            out.append(f"| `{name}` | `{kind}` | `{default}` | {meaning} |")
+    return "\n".join(out) + "\n"

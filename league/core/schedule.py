@@ -2,8 +2,9 @@
 
 | schedule  | phases                         | a phase's opponents                               | a phase ends                     |
 | --------- | ------------------------------ | ------------------------------------------------- | -------------------------------- |
-| protocol  | ``league.phases``, in order    | the other side's scripted players, or its newest  | after the phase's ``episodes``   |
-|           |                                | snapshot (``opponents: latest``)                  | (or ``env_steps``)               |
+| protocol  | ``league.phases``, in order    | the other side's scripted players, its newest     | after the phase's ``episodes``   |
+|           |                                | snapshot (``opponents: latest``), or both         | (or ``env_steps``)               |
+|           |                                | (``scripted_and_latest``)                         |                                  |
 | self-play | ``selfplay_phases``, attacker  | every scripted player and snapshot of the other   | the learner won                  |
 |           | first, then in turn            | side                                              | ``snapshot_win_rate`` of at least|
 |           |                                |                                                   | ``min_phase_episodes``, or after |
@@ -46,11 +47,11 @@ class ProtocolSchedule:
 
     def opponents(self, index: int, scripted: list[Player], snapshots: list[Player]) -> list[Player]:
         spec = self.league.phases[index]
-        if spec.opponents == "latest":
-            if not snapshots:
-                raise RuntimeError(f"phase {spec} wants the latest snapshot of the other side, but there is none")
-            return [snapshots[-1]]
-        return scripted
+        if spec.opponents == "scripted":
+            return scripted
+        if not snapshots:
+            raise RuntimeError(f"phase {spec} wants the latest snapshot of the other side, but there is none")
+        return [snapshots[-1]] if spec.opponents == "latest" else scripted + [snapshots[-1]]
 
     def finished(self, phase: PhaseState) -> bool:
         spec = self.league.phases[phase.index]

@@ -41,3 +41,15 @@ def test_selfplay_alternates_against_the_whole_pool_and_ends_on_wins_or_steps():
     assert schedule.finished(PhaseState(0, "attacker", 0, episodes=200, learner_wins=120))  # 0.6 of 200
     assert not schedule.finished(PhaseState(0, "attacker", 0, episodes=200, learner_wins=119))
     assert schedule.finished(PhaseState(0, "attacker", 0, episodes=10, learner_wins=0, env_steps=10_000))
+
+
+def test_a_protocol_phase_can_meet_the_scripted_players_and_the_newest_snapshot():
+    run = RunConfig(name="p", league={"mode": "protocol", "phases": [
+        {"learner": "attacker", "env_steps": 100}, {"learner": "team", "env_steps": 50, "opponents": "scripted_and_latest"}]})
+    assert schedule_of(run).opponents(1, SCRIPTED, SNAPSHOTS) == SCRIPTED + [SNAPSHOTS[-1]]
+
+
+def test_the_first_protocol_phase_cannot_want_snapshots():
+    for opponents in ("latest", "scripted_and_latest"):
+        with pytest.raises(ValueError, match="first protocol phase"):
+            RunConfig(name="p", league={"mode": "protocol", "phases": [{"learner": "team", "env_steps": 5, "opponents": opponents}]})

@@ -1,0 +1,19 @@
+"""Print the configuration reference: ``python -m league.config_reference > docs/configuration.md``.
+
+Every key of a run config with its type, default and field docstring (``league.config.reference_markdown``).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from league.config import reference_markdown
+
+
+def main(argv: list[str] | None = None) -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args(argv)
+    print(reference_markdown(), end="")
+
+
+if __name__ == "__main__":
+    main()
