@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from league.nash import league_meta_game
-from league.payoff import aggregate, wilson_interval
-from league.reproduce import bootstrap_interval
-from league.run_dir import open_run
+from league.analysis.nash import league_meta_game
+from league.analysis.statistics import bootstrap_interval, wilson_interval
+from league.core.payoff import aggregate
+from league.state.run_dir import open_run
 
 TRAINED = ("snapshot", "exploiter_snapshot")
 

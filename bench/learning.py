@@ -37,7 +37,7 @@ def show(label: str, value: tuple[float, tuple[float, float], int]) -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default="attacker_method2")
+    parser.add_argument("--config", default="attacker_method2_paper")
     parser.add_argument("--run-dir", type=Path)
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     parser.add_argument("--skip-training", action="store_true", help="only read an existing run directory")

@@ -51,7 +51,7 @@ class PPOSettings(Strict):
     """Discount of the team learner (T and D); ``None``: ``gamma``. Against lead intercept the
     team loses nearly every game at first and its per-step rewards (Eq. 10, 11) are small next to
     a terminal reward, so with ``gamma`` 0.99 a loss put off by ``k`` steps costs only
-    ``0.99 ** k`` of one taken now: it learned to flee and stall instead of winning (README,
+    ``0.99 ** k`` of one taken now: it learned to flee and stall instead of winning (docs/results/learning.md,
     "The team's learning"). Needs ``resources.sampler: fast`` (RLlib's own GAE has one discount for every module)."""
     team_lambda_: float | None = Field(None, ge=0, le=1)
     """GAE ``lambda`` of the team learner; ``None``: ``lambda_``. Same sampler caveat."""
@@ -60,8 +60,11 @@ class PPOSettings(Strict):
     with ``Phi = -k |T ter|`` (``league.rollout.train_batch.potential_shaping``): ``k`` per unit T
     closes on the terminal, paid back when the game ends, so it changes no policy's ranking.
     Without it T never found the terminal sphere (radius ``v_T``, one step of T) by exploring,
-    and trained teams won only by D's interceptions (README, "The team's learning"). Returns
-    in curves, evaluations and metrics stay unshaped. Needs ``resources.sampler: fast``."""
+    and trained teams won only by D's interceptions (docs/results/learning.md, "The team's learning"). With
+    it, too, the flagship's teams did not learn to reach the terminal against an attacker that
+    flies off (docs/results/flagship.md); a likely reason, not measured: potential-based shaping
+    leaves the true advantages unchanged (Ng et al. 1999), so once the critic learns the shaped
+    values little of its signal is left. Returns in curves, evaluations and metrics stay unshaped. Needs ``resources.sampler: fast``."""
     team_reward: Literal["own", "shared"] = "own"
     """What T and D learn from: ``own``, each its own reward (Eq. 10, 11); ``shared``, each the
     team's, the sum of both per step (what the team return measures), so that D is paid for
@@ -470,7 +473,7 @@ def reference_markdown(model: type[BaseModel] = RunConfig) -> str:
         "# Configuration reference",
         "",
         "Every key of a run config (`configs/*.yaml`), generated from the pydantic models of",
-        "`league/config.py` and `envs/config.py` (`tests/test_config_reference.py` fails when this page and",
+        "`league/config.py` and `envs/config.py` (`tests/commands/test_config_reference.py` fails when this page and",
         "the code differ; regenerate with `python -m league.config_reference > docs/configuration.md`).",
         "Unknown keys are errors; `--set key.sub=value` overrides any key from the command line.",
     ]

@@ -5,15 +5,15 @@ Every key of a run config with its type, default and field docstring (``league.c
 
 from __future__ import annotations
 
-import argparse
-
+from league.cli import command_parser
 from league.config import reference_markdown
 
 
-def main(argv: list[str] | None = None) -> None:
-    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args(argv)
+def main(argv: list[str] | None = None) -> int:
+    command_parser("python -m league.config_reference", __doc__.splitlines()[0]).parse_args(argv)
     print(reference_markdown(), end="")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -65,7 +65,7 @@ def phases_override(budget: Budget, team: bool) -> str:
 def train(job: Job, log: Path | None) -> None:
     """Train ``job`` to the end (``train_run``)."""
     label = f"{job.variant}, {job.budget.describe()}, method {job.method}, seed {job.seed}"
-    train_run(f"attacker_method{job.method}", job.run_dir, job.overrides, label, log)
+    train_run(f"attacker_method{job.method}_paper", job.run_dir, job.overrides, label, log)
 
 
 def own_method_returns(run_dir: Path, method: int) -> tuple[float, float, str] | None:

@@ -21,11 +21,11 @@ TINY = [
 
 @pytest.mark.parametrize("team", [False, True])
 def test_a_budget_in_env_steps_replaces_the_episode_counts_of_the_phases(team):
-    run = load_config("attacker_method2", [phases_override(Budget("env_steps", 5000), team)])
+    run = load_config("attacker_method2_paper", [phases_override(Budget("env_steps", 5000), team)])
     assert [(p.learner, p.episodes, p.env_steps, p.opponents) for p in run.league.phases] == [
         ("attacker", None, 5000, "scripted"), *([("team", None, 5000, "latest")] if team else [])
     ]
-    assert load_config("attacker_method2", [phases_override(Budget("episodes", 30), False)]).league.phases[0].episodes == 30
+    assert load_config("attacker_method2_paper", [phases_override(Budget("episodes", 30), False)]).league.phases[0].episodes == 30
 
 
 def reproduce(out, *extra, wait=True):

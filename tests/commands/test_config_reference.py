@@ -8,7 +8,7 @@ from pydantic import BaseModel, ConfigDict
 
 from league.config import reference_markdown, undocumented_fields
 
-REFERENCE = Path(__file__).resolve().parent.parent / "docs" / "configuration.md"
+REFERENCE = Path(__file__).resolve().parents[2] / "docs" / "configuration.md"
 
 
 def test_the_reference_page_is_what_the_code_generates():
