@@ -38,7 +38,7 @@ class ScenarioSet:
 
 SCENARIO_SETS: dict[str, ScenarioSet] = {
     # Tuned so the scripted lead-intercept attacker beats the paper's scripted team in
-    # 20-80% of games (README, "Scripted players").
+    # 20-80% of games (docs/game.md, "Scripted players").
     "default": ScenarioSet((2.0, 4.0), (1.5, 3.0), (1.0, 2.0), "A 1-2 from T, D 1.5-3 from T"),
     "defender_close": ScenarioSet((2.0, 4.0), (0.3, 1.0), (1.0, 2.0), "D escorts T closely"),
     "attacker_far": ScenarioSet((2.0, 4.0), (1.5, 3.0), (2.0, 4.0), "A starts 2-4 from T"),

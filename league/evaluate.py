@@ -30,7 +30,7 @@ from league.state.run_dir import RunDirError, open_run
 
 
 def evaluation_json(scenario: str, episodes: int, results: list[PairEvaluation], meta: Any) -> dict:
-    """The tables' numbers as data (``--json``; the schema is in the README, "Evaluation")."""
+    """The tables' numbers as data (``--json``; the schema is in docs/evaluation.md)."""
     pairs = []
     for r in results:
         low, high = wilson_interval(r.attacker_wins, r.games)

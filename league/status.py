@@ -72,7 +72,7 @@ def exploitability_section(store: LeagueStore) -> list:
 
 
 def status_json(run_dir: Path, store: LeagueStore, source: str | None = None) -> dict:
-    """What the tables say, as data (``--json``; the schema is in the README, "Status")."""
+    """What the tables say, as data (``--json``; the schema is in docs/training.md, "Status")."""
     last = store.last_iteration()
     checkpoint = store.last_checkpoint()
     seconds = store.training_seconds()

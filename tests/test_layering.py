@@ -3,7 +3,7 @@
 SQL only in the store; no import cycles among league's modules or packages; no module
 imports a command (the modules at the top of ``league/`` with a ``__main__`` block);
 ``league/core/`` without Ray or torch; ``ray.rllib`` only in ``league/rllib/``; who won
-only in ``league/core/payoff.py``; the README's layout table lists the tree.
+only in ``league/core/payoff.py``; the README's layout table lists the packages, docs/architecture.md's every module.
 
 Each rule is a scan of the source files (``envs/``, ``league/``, ``bench/``) and a test
 that the scan finds a planted violation, so a rule that stopped matching would fail.
@@ -285,29 +285,38 @@ def test_the_who_won_scan_finds_the_old_copies(tmp_path):
     ]
 
 
-# ---------------------------------------------------------------- the README's layout table
+# ---------------------------------------------------------------- the layout tables
 LAYOUT_PATH = re.compile(r"`(league/[\w/]*(?:\.py|/))`")
 
 
-def layout_table_paths(readme: str) -> set[str]:
-    """The ``league/`` paths named in the first cell of the rows of the README's "Layout" table."""
-    section = readme.split("\n## Layout\n", 1)[1].split("\n## ", 1)[0]
+def layout_table_paths(page: str) -> set[str]:
+    """The ``league/`` paths named in the first cell of the rows of a page's "Layout" table."""
+    section = page.split("\n## Layout\n", 1)[1].split("\n## ", 1)[0]
     rows = [line for line in section.splitlines() if line.startswith("| ")]
     return {path for row in rows for path in LAYOUT_PATH.findall(row.split(" | ")[0])}
 
 
-def tree_paths(root: Path) -> set[str]:
-    """``league``'s modules and sub-packages (``league/core/``), as the layout table names them."""
+def tree_paths(root: Path, packages_only: bool = False) -> set[str]:
+    """``league``'s modules and sub-packages (``league/core/``), as the layout tables name them;
+    ``packages_only``: its sub-packages and its top-level modules (the README's table)."""
     paths = set()
     for path in (root / "league").rglob("*.py"):
         relative = path.relative_to(root).as_posix()
-        package = path.name == "__init__.py" and path.parent != root / "league"
+        top_level = path.parent == root / "league"
+        if packages_only and not top_level:
+            paths.add(path.parent.relative_to(root).as_posix() + "/")
+            continue
+        package = path.name == "__init__.py" and not top_level
         paths.add(relative.removesuffix("__init__.py") if package else relative)
     return paths
 
 
-def test_the_readme_layout_table_lists_the_tree():
-    assert layout_table_paths((ROOT / "README.md").read_text()) == tree_paths(ROOT)
+def test_the_readme_layout_table_lists_the_packages():
+    assert layout_table_paths((ROOT / "README.md").read_text()) == tree_paths(ROOT, packages_only=True)
+
+
+def test_the_architecture_layout_table_lists_every_module():
+    assert layout_table_paths((ROOT / "docs" / "architecture.md").read_text()) == tree_paths(ROOT)
 
 
 def test_the_layout_scan_finds_a_missing_and_a_stale_row(tmp_path):
@@ -320,3 +329,4 @@ def test_the_layout_scan_finds_a_missing_and_a_stale_row(tmp_path):
     })
     listed, tree = layout_table_paths((root / "README.md").read_text()), tree_paths(root)
     assert tree - listed == {"league/core/pfsp.py"} and listed - tree == {"league/payoff.py"}
+    assert tree_paths(root, packages_only=True) == {"league/__init__.py", "league/run.py", "league/core/"}

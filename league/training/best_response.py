@@ -30,7 +30,7 @@ from league.state.store import LeagueStore
 
 DEFAULT_ENV_STEPS = 200_000
 DEFAULT_SEEDS = 3
-# README, "Does it learn?": with +-30 at the end of a game the method-2 attacker learned to
+# docs/results/learning.md, "Does it learn?": with +-30 at the end of a game the method-2 attacker learned to
 # win (0.786 against the scripted team); with 10 it still drifted into interceptions.
 TERMINAL_REWARD = 30.0
 SCRATCH_PREFIX = ".exploit-"

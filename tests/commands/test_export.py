@@ -148,10 +148,10 @@ def test_missing_player_and_corrupt_checkpoint_are_clear_errors(run_dir, tmp_pat
 
 
 def test_readme_example_runs(run_dir, tmp_path):
-    """The README's export example, as written, with an attacker exported from a run."""
+    """The export example of docs/evaluation.md, as written, with an attacker exported from a run."""
     out = tmp_path / "attacker.pt2"
     assert export_main(["--run-dir", str(run_dir), "--player", "latest-attacker", "--format", "export", "--out", str(out)]) == 0
-    readme = (REPO / "README.md").read_text()
+    readme = (REPO / "docs" / "evaluation.md").read_text()
     block = readme.split("<!-- export-example -->", 1)[1].split("```python", 1)[1].split("```", 1)[0]
     proc = subprocess.run([sys.executable, "-c", block], capture_output=True, text=True, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
