@@ -43,7 +43,7 @@ from league.evaluation.engine import play_fixed_games, policies_of
 from league.analysis.statistics import wilson_interval
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
-from league.studies.runs import finished, train_run
+from league.studies.runs import finished, train_run, train_runs_on_cluster
 from league.state.run_dir import open_run
 
 ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance")
@@ -109,6 +109,8 @@ def win_cell(wins: int, games: int) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=Path("runs/league_quality"))
+    parser.add_argument("--address", help="train the arms as tasks of this Ray cluster (OUT on shared storage)")
+    parser.add_argument("--cpus-per-run", type=float, default=2.0, help="with --address: CPUs per arm's run")
     parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=ARMS)
     parser.add_argument("--phases", type=int, default=6, help="alternating phases (even: both sides the same budget)")
     parser.add_argument("--phase-env-steps", type=int, default=200_000)
@@ -128,6 +130,11 @@ def main(argv: list[str] | None = None) -> int:
 
     finals: dict[str, dict[str, Player]] = {}
     exploiter_steps: dict[str, dict[str, int]] = {}
+    if args.address:  # all arms at once on the cluster; the loop below then reuses them
+        pending = [arm for arm in args.arms if not finished(args.out / arm)]
+        runs = [("selfplay_league", args.out / arm, arm_overrides(arm, args), arm, args.out / f"{arm}.log") for arm in pending]
+        for arm, node in zip(pending, train_runs_on_cluster(args.address, runs, args.cpus_per_run)):
+            print(f"{arm}: trained on node {node}")
     for arm in args.arms:
         run_dir = args.out / arm
         if not finished(run_dir):

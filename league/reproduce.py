@@ -17,6 +17,9 @@ attacker's) and ``OUT/VARIANT/BUDGET/curves-methodM/`` (``league.studies.curves`
   from their last checkpoint (``league.run --resume``).
 * ``--jobs K`` trains K runs side by side (each its own process and Ray instance; their
   output goes to ``OUT/logs/``).
+* ``--address ADDR`` trains every run as a task of the Ray cluster at ``ADDR`` instead
+  (``--cpus-per-run`` CPUs each, default 2), so the runs spread over its nodes; ``OUT``
+  must be on storage every node shares. Each run's node is printed.
 
 The whole two-budget Table 1 (3 methods x 3 seeds x 2 budgets x 2 variants) is one command
 (2,000,000 env steps stands for the convergence budget: read it off the learning curves)::
@@ -37,7 +40,8 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from league.state.run_dir import RunDirError
-from league.studies.table_one import Budget, Job, phases_override, table, train
+from league.studies.runs import train_runs_on_cluster
+from league.studies.table_one import Budget, Job, phases_override, table, task, train
 from league.cli import command_parser
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -53,12 +57,16 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--evaluation-episodes", type=int, default=1000)
     parser.add_argument("--methods", type=int, nargs="+", default=[1, 2, 3], choices=[1, 2, 3])
     parser.add_argument("--jobs", type=int, default=1, help="runs trained side by side")
+    parser.add_argument("--address", help="a Ray cluster to train the runs on, as tasks (default: on this machine)")
+    parser.add_argument("--cpus-per-run", type=float, default=2.0, help="with --address: CPUs Ray reserves per run")
     parser.add_argument("--out", type=Path, default=Path("runs/reproduce"))
     parser.add_argument("--set", dest="overrides", action="append", default=[], help="extra config overrides")
     args = parser.parse_args(argv)
     budgets = [*args.episodes, *args.env_steps]
     if args.seeds < 1 or args.jobs < 1 or args.evaluation_episodes < 1 or any(b < 1 for b in budgets):
         parser.error("--seeds, --jobs, --evaluation-episodes and every budget must be at least 1")
+    if args.cpus_per_run <= 0:
+        parser.error("--cpus-per-run must be positive")
     if args.terminal_reward <= 0 and "terminal" in args.variants:
         parser.error("--terminal-reward must be positive for the terminal variant")
     return args
@@ -83,7 +91,12 @@ def main(argv: list[str] | None = None) -> int:
     logs = args.out / "logs"
     logs.mkdir(parents=True, exist_ok=True)
     try:
-        if args.jobs == 1:
+        if args.address:
+            names = [logs / f"{j.variant}-{j.budget.label}-method{j.method}-seed{j.seed}.log" for j in jobs]
+            nodes = train_runs_on_cluster(args.address, [task(j, log) for j, log in zip(jobs, names)], args.cpus_per_run)
+            for job, node in zip(jobs, nodes):
+                print(f"{job.run_dir}: trained on node {node}")
+        elif args.jobs == 1:
             for job in jobs:
                 train(job, None)
         else:

@@ -53,3 +53,29 @@ def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | Non
     finally:
         if out:
             out.close()
+
+
+def _train_here(config: str, run_dir: str, overrides, label: str, log: str | None) -> str:
+    """One run, trained on whichever node Ray placed this task; the node's id."""
+    import ray
+
+    train_run(config, Path(run_dir), overrides, label, Path(log) if log else None)
+    return ray.get_runtime_context().get_node_id()
+
+
+def train_runs_on_cluster(address: str, runs: list[tuple], cpus_per_run: float) -> list[str]:
+    """Train every ``(config, run_dir, overrides, label, log)`` as a Ray task of the cluster at
+    ``address`` (``ray.init(address=...)``), ``cpus_per_run`` CPUs each, so Ray spreads the runs
+    over its nodes; each run is still its own ``league.run`` process with its own private Ray
+    instance on its node. Run directories must be on storage every node reads and writes (a
+    shared filesystem). Returns the node id each run trained on, in order."""
+    import ray
+
+    ray.init(address=address, logging_level="ERROR")
+    try:
+        task = ray.remote(num_cpus=cpus_per_run)(_train_here)
+        refs = [task.remote(config, str(Path(d).resolve()), tuple(o), label, str(Path(log).resolve()) if log else None)
+                for config, d, o, label, log in runs]
+        return ray.get(refs)
+    finally:
+        ray.shutdown()

@@ -62,10 +62,15 @@ def phases_override(budget: Budget, team: bool) -> str:
     return f"league.phases=[{', '.join(phases)}]"
 
 
+def task(job: Job, log: Path | None) -> tuple:
+    """``job`` as ``train_run``'s arguments: config, run directory, overrides, label, log."""
+    label = f"{job.variant}, {job.budget.describe()}, method {job.method}, seed {job.seed}"
+    return f"attacker_method{job.method}_paper", job.run_dir, job.overrides, label, log
+
+
 def train(job: Job, log: Path | None) -> None:
     """Train ``job`` to the end (``train_run``)."""
-    label = f"{job.variant}, {job.budget.describe()}, method {job.method}, seed {job.seed}"
-    train_run(f"attacker_method{job.method}_paper", job.run_dir, job.overrides, label, log)
+    train_run(*task(job, log))
 
 
 def own_method_returns(run_dir: Path, method: int) -> tuple[float, float, str] | None:
