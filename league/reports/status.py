@@ -1,0 +1,115 @@
+"""Where a run stands and its league table, read from the league database only (``python -m league.status``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rich.table import Table
+
+from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability
+from league.analysis.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_game
+from league.core.payoff import aggregate, player_record
+from league.state.run_dir import usable_checkpoints
+from league.state.store import LeagueStore
+
+
+def league_table(store: LeagueStore, source: str | None = None) -> Table:
+    """Players with rating, games and win rate over their games of ``source``, each game counted once."""
+    ratings = store.latest_ratings()
+    payoff = aggregate(store.counted_results(source))
+    table = Table(title="league", caption="rating: none for a player without games (nothing to fit)")
+    for column in ("player", "side", "kind", "reward", "parent", "env steps", "rating", "games", "win rate"):
+        table.add_column(column, justify="right" if column in ("env steps", "rating", "games", "win rate") else "left")
+    players = store.players()
+    names = {p.id: p.name for p in players}
+    for player in sorted(players, key=lambda p: -ratings.get(p.id, 0.0)):
+        wins, games = player_record(payoff, player.side, player.id)
+        table.add_row(
+            player.name,
+            player.side,
+            player.kind,
+            str(player.reward_method or ""),
+            names.get(player.parent, ""),
+            str(player.env_steps),
+            f"{ratings[player.id]:.0f}" if player.id in ratings else "",
+            str(games),
+            f"{wins / games:.3f}" if games else "",
+        )
+    return table
+
+
+def nash_section(store: LeagueStore) -> list:
+    """The meta-game's value and the players with nonzero Nash weight (or why there is no meta-game)."""
+    meta, why_not = league_meta_game(store.players(), store.newest_evaluation_rows())
+    if meta is None:
+        return [f"no meta-game: {why_not}"]
+    table = Table(title="Nash mixtures", caption=META_GAME_NOTE)
+    for column in MIXTURE_HEADER:
+        table.add_column(column, justify="left" if column in ("side", "player") else "right")
+    for row in meta.mixture_rows():
+        table.add_row(*row)
+    return [meta.value_line(), table]
+
+
+def exploitability_section(store: LeagueStore) -> list:
+    """Each exploited player's best responses (``league.exploit``): their win rates, mean and interval over seeds."""
+    found = exploitability(store.players(), store.newest_evaluation_rows())
+    if not found:
+        return []
+    table = Table(title="exploitability (best responses)", caption=EXPLOITABILITY_NOTE)
+    for column in EXPLOITABILITY_HEADER:
+        table.add_column(column, justify="left" if column == "player" else "right")
+    for item in found:
+        table.add_row(*item.row())
+    return [table]
+
+
+def status_json(run_dir: Path, store: LeagueStore, source: str | None = None) -> dict:
+    """What the tables say, as data (``--json``; the schema is in docs/training.md, "Status")."""
+    last = store.last_iteration()
+    checkpoint = store.last_checkpoint()
+    seconds = store.training_seconds()
+    usable, problems = usable_checkpoints(run_dir, store)
+    ratings = store.latest_ratings()
+    payoff = aggregate(store.counted_results(source))
+    players = store.players()
+    names = {p.id: p.name for p in players}
+    rows = []
+    for player in players:
+        wins, games = player_record(payoff, player.side, player.id)
+        rows.append({
+            "player": player.name, "side": player.side, "kind": player.kind, "reward_method": player.reward_method,
+            "parent": names.get(player.parent), "env_steps": player.env_steps, "rating": ratings.get(player.id),
+            "games": games, "wins": wins, "win_rate": wins / games if games else None,
+        })
+    meta, why_not = league_meta_game(players, store.newest_evaluation_rows())
+    return {
+        "finished": bool(checkpoint and checkpoint[2].get("training_done", False)),
+        "iteration": last["iteration"] if last else 0,
+        "phase": last["phase"] + 1 if last else None,
+        "learner_side": last["learner_side"] if last else None,
+        "env_steps": last["env_steps"] if last else 0,
+        "episodes": last["episodes"] if last else 0,
+        "training_seconds": seconds,
+        "env_steps_per_second": last["env_steps"] / seconds if last and seconds > 0 else None,
+        "last_checkpoint": {"iteration": usable[0][0], "path": usable[0][1]} if usable else None,
+        "warnings": problems,
+        "players": rows,
+        "meta_game": meta.as_json() if meta is not None else {"none": why_not},
+    }
+
+
+def run_line(store: LeagueStore) -> str:
+    """Where the run stands: finished or at which phase, and its average speed so far."""
+    last = store.last_iteration()
+    if not last:
+        return "no iteration finished yet"
+    checkpoint = store.last_checkpoint()
+    finished = checkpoint is not None and checkpoint[2].get("training_done", False)
+    where = "finished" if finished else f"phase {last['phase'] + 1} ({last['learner_side']} learning)"
+    seconds = store.training_seconds()
+    speed = f"{last['env_steps'] / seconds:.0f} env steps/s on average" if seconds > 0 else "no timing"
+    return (
+        f"{where}: iteration {last['iteration']}, {last['env_steps']} env steps, {last['episodes']} episodes, "
+        f"{seconds:.0f} s of training iterations, {speed}"
+    )
