@@ -90,9 +90,9 @@ def main(argv: list[str] | None = None) -> int:
                     jobs.append(Job(variant, budget, method, seed, run_dir, (*overrides, *args.overrides)))
     logs = args.out / "logs"
     logs.mkdir(parents=True, exist_ok=True)
+    names = [logs / f"{j.variant}-{j.budget.label}-method{j.method}-seed{j.seed}.log" for j in jobs]
     try:
         if args.address:
-            names = [logs / f"{j.variant}-{j.budget.label}-method{j.method}-seed{j.seed}.log" for j in jobs]
             nodes = train_runs_on_cluster(args.address, [task(j, log) for j, log in zip(jobs, names)], args.cpus_per_run)
             for job, node in zip(jobs, nodes):
                 print(f"{job.run_dir}: trained on node {node}")
@@ -101,7 +101,6 @@ def main(argv: list[str] | None = None) -> int:
                 train(job, None)
         else:
             with ThreadPoolExecutor(args.jobs) as pool:
-                names = [logs / f"{j.variant}-{j.budget.label}-method{j.method}-seed{j.seed}.log" for j in jobs]
                 for future in [pool.submit(train, job, log) for job, log in zip(jobs, names)]:
                     future.result()
     except RunDirError as err:
