@@ -61,7 +61,7 @@ RICH_SIZE = 21
 ROLE_SIZE = 2
 GLOBAL_STATE_SIZE = 22
 # Columns of the global state (layout in the module docstring).
-STATE_T_TERMINAL, STATE_TIME_LEFT = 20, 21
+STATE_D_ATTACKER, STATE_T_TERMINAL, STATE_TIME_LEFT = 19, 20, 21
 # Whom each agent sees first and second: opponent first.
 OTHERS = {ATTACKER: (TARGETER, DEFENDER), TARGETER: (ATTACKER, DEFENDER), DEFENDER: (ATTACKER, TARGETER)}
 ROLE_ONE_HOT = {TARGETER: (1.0, 0.0), DEFENDER: (0.0, 1.0)}
@@ -168,6 +168,11 @@ def global_state(config: GameConfig, positions: np.ndarray, headings: np.ndarray
 def terminal_distance(config: GameConfig, states: np.ndarray) -> np.ndarray:
     """T's distance to the terminal, read from global states (any leading axes)."""
     return np.asarray(states[..., STATE_T_TERMINAL], dtype=np.float64) * config.position_scale
+
+
+def interception_distance(config: GameConfig, states: np.ndarray) -> np.ndarray:
+    """D's distance to A, read from global states (any leading axes)."""
+    return np.asarray(states[..., STATE_D_ATTACKER], dtype=np.float64) * config.position_scale
 
 
 def decode_global_state(config: GameConfig, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

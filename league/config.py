@@ -65,6 +65,17 @@ class PPOSettings(Strict):
     flies off (docs/results/flagship.md); a likely reason, not measured: potential-based shaping
     leaves the true advantages unchanged (Ng et al. 1999), so once the critic learns the shaped
     values little of its signal is left. Returns in curves, evaluations and metrics stay unshaped. Needs ``resources.sampler: fast``."""
+    defender_shaping: float = Field(0.0, ge=0)
+    """``k``: in training, D's rewards get the potential-based shaping ``gamma Phi(s') - Phi(s)``
+    with ``Phi = -k |D A|``, as ``targeter_shaping`` does for T: ``k`` per unit D closes on A,
+    paid back when the game ends. Needs ``resources.sampler: fast``."""
+    attacker_win_reward: float = Field(0.0, ge=0)
+    """In training only, added to the attacker's reward on the last step of each game: ``+``
+    when it wins, ``-`` when it loses, on top of ``game.terminal_reward`` (which both sides
+    get). Method 2's per-step reward (Eq. 8) pays for flying along lead intercept's reference
+    direction, so with the game's terminal reward alone the method-2 attacker learned to fly
+    about as lead intercept does and won about as often (docs/results/flagship.md). Returns
+    in curves, evaluations and metrics stay the game's. Needs ``resources.sampler: fast``."""
     team_reward: Literal["own", "shared"] = "own"
     """What T and D learn from: ``own``, each its own reward (Eq. 10, 11); ``shared``, each the
     team's, the sum of both per step (what the team return measures), so that D is paid for
@@ -163,9 +174,11 @@ class ProtocolPhase(Strict):
     env_steps: int | None = Field(None, ge=1)
     """...or, given instead, once this many env steps were sampled in it (a budget that does not
     depend on how long the games last)."""
-    opponents: Literal["scripted", "latest", "scripted_and_latest"] = "scripted"
+    opponents: Literal["scripted", "latest", "scripted_and_latest", "scripted_and_snapshots"] = "scripted"
     """``scripted``: the configured scripted players; ``latest``: the other side's newest snapshot
-    (the paper's phase 2); ``scripted_and_latest``: both, weighted by PFSP."""
+    (the paper's phase 2); ``scripted_and_latest``: both, weighted by PFSP;
+    ``scripted_and_snapshots``: the scripted players and every snapshot of the other side, its
+    untrained version 0 included, weighted by PFSP."""
 
     @model_validator(mode="after")
     def _one_budget(self) -> "ProtocolPhase":
@@ -288,8 +301,9 @@ class RunConfig(Strict):
             raise ValueError("ppo.minibatch_counts: env_steps needs resources.sampler: fast (RLlib's PPO has one minibatch size)")
         if self.ppo.team_reward != "own" and self.resources.sampler != "fast":
             raise ValueError("ppo.team_reward: shared needs resources.sampler: fast (RLlib's learner pays each agent its own reward)")
-        if self.ppo.targeter_shaping and self.resources.sampler != "fast":
-            raise ValueError("ppo.targeter_shaping needs resources.sampler: fast (RLlib's learner connectors would not shape)")
+        for key in ("targeter_shaping", "defender_shaping", "attacker_win_reward"):
+            if getattr(self.ppo, key) and self.resources.sampler != "fast":
+                raise ValueError(f"ppo.{key} needs resources.sampler: fast (RLlib's learner connectors would not apply it)")
         if not self.league.frozen_players_explore and self.resources.sampler == "standard":
             raise ValueError(
                 "league.frozen_players_explore: false needs resources.sampler: fast or batched "

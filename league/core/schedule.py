@@ -4,7 +4,8 @@
 | --------- | ------------------------------ | ------------------------------------------------- | -------------------------------- |
 | protocol  | ``league.phases``, in order    | the other side's scripted players, its newest     | after the phase's ``episodes``   |
 |           |                                | snapshot (``opponents: latest``), or both         | (or ``env_steps``)               |
-|           |                                | (``scripted_and_latest``)                         |                                  |
+|           |                                | (``scripted_and_latest``), or the scripted players|                                  |
+|           |                                | and every snapshot (``scripted_and_snapshots``)   |                                  |
 | self-play | ``selfplay_phases``, attacker  | every scripted player and snapshot of the other   | the learner won                  |
 |           | first, then in turn            | side                                              | ``snapshot_win_rate`` of at least|
 |           |                                |                                                   | ``min_phase_episodes``, or after |
@@ -51,6 +52,8 @@ class ProtocolSchedule:
             return scripted
         if not snapshots:
             raise RuntimeError(f"phase {spec} wants the latest snapshot of the other side, but there is none")
+        if spec.opponents == "scripted_and_snapshots":
+            return scripted + snapshots
         return [snapshots[-1]] if spec.opponents == "latest" else scripted + [snapshots[-1]]
 
     def finished(self, phase: PhaseState) -> bool:

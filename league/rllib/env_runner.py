@@ -46,8 +46,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from envs.agents import AGENTS, Outcome
-from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
+from envs.agents import AGENTS, ATTACKER_WIN_VALUES, Outcome
+from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal_distance
 from envs.vector_env import TargetDefenseVectorEnv
 from league.rllib import compat
 from league.rllib.modules import ScriptedModule
@@ -82,6 +82,9 @@ from ray.rllib.utils.metrics import (
     SAMPLE_TIMER,
     WEIGHTS_SEQ_NO,
 )
+
+# The distance each team agent's potential-based shaping measures (T: to the terminal, D: to A).
+SHAPED_DISTANCE = {"targeter": terminal_distance, "defender": interception_distance}
 
 RESET_INFOS: dict[str, dict] = {agent: {} for agent in AGENTS}  # what a reset returns as infos
 OUTCOMES_KEY = "league_outcomes"  # metrics key of the finished games by modules and outcome
@@ -418,6 +421,8 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         """Every trained module's PPO columns from rows ``0..t`` (see ``sample_training_data``)."""
         config = self.config
         ended = (rows.outcome[:t] != int(Outcome.RUNNING)).astype(np.float64)
+        # +1 on the step of each game the attacker won, -1 on the step of each it lost.
+        attacker_outcome = np.where(np.isin(rows.outcome[:t], ATTACKER_WIN_VALUES), 1.0, -1.0) * ended
         data: dict[str, dict[str, list[np.ndarray]]] = {}
         for index, module_id in enumerate(self.rollout.module_ids):
             if not self._is_trained(module_id):
@@ -438,13 +443,14 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                     values[observed] = module.compute_values({Columns.OBS: torch.from_numpy(obs[observed])}).numpy()
                 if agent == "attacker" and method:
                     rewards = rows.attacker_rewards[:t, :, method - 1]  # this module's reward method
+                    rewards = rewards + module_config.get("attacker_win_reward", 0.0) * attacker_outcome
                 elif module_config.get("team_reward") == "shared":  # `PPOSettings.team_reward`
                     rewards = rows.rewards["targeter"][:t] + rows.rewards["defender"][:t]
                 else:
                     rewards = rows.rewards[agent][:t]
-                shaping = module_config.get("targeter_shaping")
-                if agent == "targeter" and shaping:  # `PPOSettings.targeter_shaping`
-                    distance = terminal_distance(self.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
+                shaping = module_config.get(f"{agent}_shaping")  # `PPOSettings.targeter_shaping`, `defender_shaping`
+                if agent in SHAPED_DISTANCE and shaping:
+                    distance = SHAPED_DISTANCE[agent](self.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
                     rewards = rewards + potential_shaping(-shaping * distance, ended, gamma)
                 advantages, targets = gae(rewards, values[:t], values[t], ended, gamma, lambda_)
                 columns = {

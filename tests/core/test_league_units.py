@@ -43,6 +43,8 @@ def write(tmp_path, text):
         ("name: x\nppo: {minibatch_counts: games}\n", "ppo.minibatch_counts"),
         ("name: x\nppo: {targeter_shaping: -1}\n", "ppo.targeter_shaping"),
         ("name: x\nppo: {targeter_shaping: 3}\nresources: {sampler: batched}\n", "targeter_shaping"),
+        ("name: x\nppo: {defender_shaping: 3}\nresources: {sampler: batched}\n", "defender_shaping"),
+        ("name: x\nppo: {attacker_win_reward: 70}\nresources: {sampler: standard}\n", "attacker_win_reward"),
         ("name: x\nppo: {team_reward: shared}\nresources: {sampler: standard}\n", "team_reward"),
         ("name: x\nppo: {team_reward: mine}\n", "ppo.team_reward"),
         ("name: x\nleague: {frozen_players_explore: false}\nresources: {sampler: standard}\n", "frozen_players_explore"),

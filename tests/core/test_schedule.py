@@ -49,7 +49,13 @@ def test_a_protocol_phase_can_meet_the_scripted_players_and_the_newest_snapshot(
     assert schedule_of(run).opponents(1, SCRIPTED, SNAPSHOTS) == SCRIPTED + [SNAPSHOTS[-1]]
 
 
+def test_a_protocol_phase_can_meet_the_scripted_players_and_every_snapshot():
+    run = RunConfig(name="p", league={"mode": "protocol", "phases": [
+        {"learner": "attacker", "env_steps": 100}, {"learner": "team", "env_steps": 50, "opponents": "scripted_and_snapshots"}]})
+    assert schedule_of(run).opponents(1, SCRIPTED, SNAPSHOTS) == SCRIPTED + SNAPSHOTS
+
+
 def test_the_first_protocol_phase_cannot_want_snapshots():
-    for opponents in ("latest", "scripted_and_latest"):
+    for opponents in ("latest", "scripted_and_latest", "scripted_and_snapshots"):
         with pytest.raises(ValueError, match="first protocol phase"):
             RunConfig(name="p", league={"mode": "protocol", "phases": [{"learner": "team", "env_steps": 5, "opponents": opponents}]})

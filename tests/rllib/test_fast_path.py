@@ -9,7 +9,7 @@ import torch
 from league.config import RunConfig
 from league.core.players import Player
 from envs.agents import Outcome
-from envs.observations import GLOBAL_STATE_SIZE, terminal_distance
+from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal_distance
 from league.core.match_plan import MatchPlan
 from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO, training_batch
 from league.rllib.bridge import build_config, episode_outcomes, set_trainable
@@ -217,14 +217,14 @@ def test_the_learning_rate_follows_its_schedule_over_env_steps(algo):  # `algo`:
         own.stop()
 
 
-def training_data_with_team_setting(algo, key, value):
-    """One play of the attacker and the team learning; its training data as the team's
-    module is configured, and with ``model_config[key] = value``."""
+def training_data_with_team_setting(algo, key, value, module_id=TEAM.name):
+    """One play of the attacker and the team learning; its training data as ``module_id``'s
+    module (the team's) is configured, and with ``model_config[key] = value``."""
     set_trainable(algo, [ATTACKER.name, TEAM.name])
     runner = algo.env_runner
     runner._reset_all()
     _, rows, t = runner._play(40, None, True, False)
-    team_config = runner.module[TEAM.name].model_config
+    team_config = runner.module[module_id].model_config
     before = team_config[key]
     plain = runner._training_data(rows, t)
     team_config[key] = value
@@ -235,26 +235,47 @@ def training_data_with_team_setting(algo, key, value):
     return runner, rows, t, plain, changed
 
 
-def test_the_targeters_shaping_reaches_its_rows_and_no_others(algo):
-    # `ppo.targeter_shaping`: only T's rewards are shaped (D's and the attacker's stay as they were).
-    runner, rows, t, plain, shaped = training_data_with_team_setting(algo, "targeter_shaping", 3.0)
+@pytest.mark.parametrize(("agent", "distance_of"), [("targeter", terminal_distance), ("defender", interception_distance)])
+def test_a_team_agents_shaping_reaches_its_rows_and_no_others(algo, agent, distance_of):
+    # `ppo.targeter_shaping`, `ppo.defender_shaping`: only that agent's rewards are shaped
+    # (the other team agent's and the attacker's stay as they were).
+    runner, rows, t, plain, shaped = training_data_with_team_setting(algo, f"{agent}_shaping", 3.0)
     np.testing.assert_array_equal(shaped[ATTACKER.name][Postprocessing.ADVANTAGES], plain[ATTACKER.name][Postprocessing.ADVANTAGES])
     # The team's columns hold T's rows, then D's. GAE is linear in the rewards, so the
-    # shaping adds GAE of the shaping rewards alone (values 0) to T's advantages.
+    # shaping adds GAE of the shaping rewards alone (values 0) to that agent's advantages.
     gamma, lambda_ = RUN.ppo.discount("team")
     index = runner.rollout.module_ids.index(TEAM.name)
-    played = rows.modules[:t, :, 1] == index
+    column = {"targeter": 1, "defender": 2}[agent]
+    played = rows.modules[:t, :, column] == index
     ended = (rows.outcome[:t] != int(Outcome.RUNNING)).astype(float)
-    obs = rows.observations["targeter"][: t + 1]
-    potentials = -3.0 * terminal_distance(runner.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
+    obs = rows.observations[agent][: t + 1]
+    potentials = -3.0 * distance_of(runner.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
     zeros = np.zeros(ended.shape)
     added, _ = gae(potential_shaping(potentials, ended, gamma), zeros, zeros[0], ended, gamma, lambda_)
-    targeter_rows = int(played.sum())
+    targeter_rows = int((rows.modules[:t, :, 1] == index).sum())
     assert 0 < targeter_rows < len(plain[TEAM.name][Columns.OBS])
     difference = shaped[TEAM.name][Postprocessing.ADVANTAGES] - plain[TEAM.name][Postprocessing.ADVANTAGES]
+    shaped_rows, other_rows = (slice(None, targeter_rows), slice(targeter_rows, None))[:: 1 if agent == "targeter" else -1]
     # float32 columns of advantages of size ~10: rounding ~1e-6.
-    np.testing.assert_allclose(difference[:targeter_rows], added[played], rtol=0, atol=1e-5)
-    np.testing.assert_array_equal(difference[targeter_rows:], 0.0)
+    np.testing.assert_allclose(difference[shaped_rows], added[played], rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(difference[other_rows], 0.0)
+
+
+def test_the_attackers_win_reward_is_paid_on_the_last_step_of_each_game(algo):
+    # `ppo.attacker_win_reward`: +R on the step of each game the attacker won, -R on each it lost.
+    runner, rows, t, plain, rewarded = training_data_with_team_setting(algo, "attacker_win_reward", 50.0, ATTACKER.name)
+    np.testing.assert_array_equal(rewarded[TEAM.name][Postprocessing.ADVANTAGES], plain[TEAM.name][Postprocessing.ADVANTAGES])
+    ended = rows.outcome[:t] != int(Outcome.RUNNING)
+    won = np.isin(rows.outcome[:t], [int(o) for o in Outcome if o.attacker_wins])
+    assert (ended & won).any() and (ended & ~won).any()  # both kinds of ending are in the rows
+    gamma, lambda_ = RUN.ppo.discount("attacker")
+    played = rows.modules[:t, :, 0] == runner.rollout.module_ids.index(ATTACKER.name)
+    zeros = np.zeros(ended.shape)
+    bonus = np.where(ended, np.where(won, 50.0, -50.0), 0.0)
+    added, _ = gae(bonus, zeros, zeros[0], ended.astype(float), gamma, lambda_)
+    difference = rewarded[ATTACKER.name][Postprocessing.ADVANTAGES] - plain[ATTACKER.name][Postprocessing.ADVANTAGES]
+    # float32 columns of advantages of size ~50: rounding ~4e-6.
+    np.testing.assert_allclose(difference, added[played], rtol=0, atol=2e-5)
 
 
 def test_a_shared_team_reward_pays_t_and_d_the_sum_of_both(algo):
