@@ -234,7 +234,8 @@ def main(argv: list[str] | None = None) -> int:
         started = time.perf_counter()
         coordinator.train(progress, stop)
         coordinator.finish(progress, stop)
-        progress.message(f"done in {time.perf_counter() - started:.0f} s: {run_dir}")
+        total = time.perf_counter() - started
+        progress.message(f"done in {total:.0f} s ({coordinator.time_split.summary(total)}): {run_dir}")
         return 0
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)

@@ -41,7 +41,7 @@ from league.core.payoff import OutcomeCount, aggregate, league_ratings, record_a
 from league.core.match_plan import MatchPlan
 from league.core.pfsp import pfsp_probabilities
 from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
-from league.training.progress import IterationTiming, ProgressReporter
+from league.training.progress import IterationTiming, ProgressReporter, TimeSplit
 from league.state.run_dir import fresh_directory, prune_checkpoints, record_config, write_checkpoint, write_replacing
 from league.core.schedule import PhaseState, schedule_of
 from league.training.stop import StopRequests
@@ -88,6 +88,7 @@ class Coordinator:
         self.log: Callable[[str], None] = print  # the progress reporter's once training starts
         self.runner_health = bridge.env_runner_health(algo)
         self.curves = LearningCurves(run, run_dir, lambda text: self.log(text))
+        self.time_split = TimeSplit()  # this process's, for the run's last line
         if state.rng:
             self.rng.bit_generator.state = state.rng
 
@@ -227,6 +228,8 @@ class Coordinator:
             lambda learner: bridge.live_module(self.algo, self.run, learner), self.store, learners, self.candidates(phase.side), steps_before, st.learner_env_steps
         )
         timing = IterationTiming(sampling=seconds - learning, learning=learning, evaluation=time.perf_counter() - started)
+        self.time_split.training += seconds
+        self.time_split.evaluation += timing.evaluation
         trained_phase = replace(phase)  # this iteration's phase, before a phase change
         snapshots = []
         if self.schedule.finished(phase):
@@ -437,11 +440,13 @@ class Coordinator:
         teams = [p for p in frozen if p.side == "team"]
         pairs = [(attacker, team) for attacker in attackers for team in teams]
         ev = run.evaluation
+        started = time.perf_counter()
         with stop.interruptible():  # playing the games writes nothing
             results = evaluate_pairs(
                 run.game, self.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker,
                 self.evaluation_pool, ev.custom_resources_per_worker, run.resources.torch_threads,
             )
+        self.time_split.final_evaluation += time.perf_counter() - started
         iteration = self.state.iteration
         with store.transaction():
             record_evaluations(store, iteration, results)

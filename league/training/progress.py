@@ -38,6 +38,23 @@ class IterationTiming:
     evaluation: float  # in-training evaluation of the learners (0 when none was due)
 
 
+@dataclass
+class TimeSplit:
+    """Where one process's wall time went: training iterations (``algo.train()``), the
+    evaluations during training (learning curves, pool evaluations) and the final evaluation."""
+
+    training: float = 0.0
+    evaluation: float = 0.0
+    final_evaluation: float = 0.0
+
+    def summary(self, total: float) -> str:
+        """``total`` seconds split into the three parts and the rest, with each part's share."""
+        parts = [("training iterations", self.training), ("evaluations during training", self.evaluation),
+                 ("final evaluation", self.final_evaluation)]
+        parts.append(("the rest", max(0.0, total - sum(seconds for _, seconds in parts))))
+        return ", ".join(f"{name} {seconds:.0f} s ({100 * seconds / max(total, 1e-9):.0f}%)" for name, seconds in parts)
+
+
 class ProgressReporter:
     def __init__(self, run_dir: Path, total_phases: int, stream: IO[str] | None = None):
         self.stream = stream or sys.stderr

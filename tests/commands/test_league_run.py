@@ -1,5 +1,6 @@
 """End-to-end league runs in subprocesses (each starts and stops its own Ray)."""
 
+import re
 import sqlite3
 import subprocess
 import sys
@@ -84,6 +85,13 @@ def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
     last_checkpoint = query(run_dir, "SELECT path FROM checkpoints ORDER BY iteration DESC LIMIT 1")[0][0]
     assert (run_dir / last_checkpoint / "rllib_checkpoint.json").exists()
     assert "steps/s" in out and "snapshot attacker-m2-v2" in out
+    # The last line splits the run's time: training iterations, evaluations during training,
+    # the final evaluation and the rest, which add up to the whole.
+    done = re.search(r"done in (\d+) s \(training iterations (\d+) s \(\d+%\), evaluations during training (\d+) s "
+                     r"\(\d+%\), final evaluation (\d+) s \(\d+%\), the rest (\d+) s \(\d+%\)\)", out)
+    assert done, out[-2000:]
+    total, *parts = (int(seconds) for seconds in done.groups())
+    assert parts[0] > 0 and abs(sum(parts) - total) <= 3  # five numbers, each rounded to the second
     assert "new API stack" not in out and "already in registry" not in out and "\x1b[" not in out  # no library banners
 
     status = subprocess.run(
