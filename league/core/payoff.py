@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.agents import Outcome
+from envs.agents import ATTACKER_WIN_VALUES, Outcome
 
 ATTACKER_WINS = frozenset(o.label for o in Outcome if o.attacker_wins)
 
@@ -37,6 +37,12 @@ def win_rate(wins: int, games: int) -> float:
 def attacker_won(outcome: str) -> bool:
     """Whether the attacker won a game that ended with the ``Outcome`` label ``outcome``."""
     return outcome in ATTACKER_WINS
+
+
+def attacker_won_games(outcomes: np.ndarray) -> np.ndarray:
+    """Per game, whether the attacker won: ``outcomes`` are ``Outcome`` values (ints), as the
+    batched game and the rollout's rows hold them."""
+    return np.isin(outcomes, ATTACKER_WIN_VALUES)
 
 
 def winner(outcome: str) -> str:

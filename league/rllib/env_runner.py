@@ -46,9 +46,10 @@ from typing import Any
 import numpy as np
 import torch
 
-from envs.agents import AGENTS, ATTACKER_WIN_VALUES, Outcome
+from envs.agents import AGENTS, Outcome
 from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal_distance
 from envs.vector_env import TargetDefenseVectorEnv
+from league.core.payoff import attacker_won_games
 from league.rllib import compat
 from league.rllib.modules import ScriptedModule
 from league.rollout.games import Policy, Rollout, Rows, ScriptedOnState
@@ -421,8 +422,6 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
         """Every trained module's PPO columns from rows ``0..t`` (see ``sample_training_data``)."""
         config = self.config
         ended = (rows.outcome[:t] != int(Outcome.RUNNING)).astype(np.float64)
-        # +1 on the step of each game the attacker won, -1 on the step of each it lost.
-        attacker_outcome = np.where(np.isin(rows.outcome[:t], ATTACKER_WIN_VALUES), 1.0, -1.0) * ended
         data: dict[str, dict[str, list[np.ndarray]]] = {}
         for index, module_id in enumerate(self.rollout.module_ids):
             if not self._is_trained(module_id):
@@ -443,7 +442,9 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
                     values[observed] = module.compute_values({Columns.OBS: torch.from_numpy(obs[observed])}).numpy()
                 if agent == "attacker" and method:
                     rewards = rows.attacker_rewards[:t, :, method - 1]  # this module's reward method
-                    rewards = rewards + module_config.get("attacker_win_reward", 0.0) * attacker_outcome
+                    win_reward = module_config.get("attacker_win_reward")
+                    if win_reward:  # `PPOSettings.attacker_win_reward`: +R on the step A won a game, -R on one it lost
+                        rewards = rewards + win_reward * np.where(attacker_won_games(rows.outcome[:t]), 1.0, -1.0) * ended
                 elif module_config.get("team_reward") == "shared":  # `PPOSettings.team_reward`
                     rewards = rows.rewards["targeter"][:t] + rows.rewards["defender"][:t]
                 else:

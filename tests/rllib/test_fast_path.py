@@ -8,7 +8,7 @@ import torch
 
 from league.config import RunConfig
 from league.core.players import Player
-from envs.agents import Outcome
+from envs.agents import AGENTS, Outcome
 from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal_distance
 from league.core.match_plan import MatchPlan
 from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO, training_batch
@@ -217,21 +217,21 @@ def test_the_learning_rate_follows_its_schedule_over_env_steps(algo):  # `algo`:
         own.stop()
 
 
-def training_data_with_team_setting(algo, key, value, module_id=TEAM.name):
-    """One play of the attacker and the team learning; its training data as ``module_id``'s
-    module (the team's) is configured, and with ``model_config[key] = value``."""
+def training_data_with_setting(algo, key, value, module_id=TEAM.name):
+    """One play of the attacker and the team learning; its training data as the ``module_id``
+    module (by default the team's) is configured, and with ``model_config[key] = value``."""
     set_trainable(algo, [ATTACKER.name, TEAM.name])
     runner = algo.env_runner
     runner._reset_all()
     _, rows, t = runner._play(40, None, True, False)
-    team_config = runner.module[module_id].model_config
-    before = team_config[key]
+    module_config = runner.module[module_id].model_config
+    before = module_config[key]
     plain = runner._training_data(rows, t)
-    team_config[key] = value
+    module_config[key] = value
     try:
         changed = runner._training_data(rows, t)
     finally:
-        team_config[key] = before
+        module_config[key] = before
     return runner, rows, t, plain, changed
 
 
@@ -239,14 +239,13 @@ def training_data_with_team_setting(algo, key, value, module_id=TEAM.name):
 def test_a_team_agents_shaping_reaches_its_rows_and_no_others(algo, agent, distance_of):
     # `ppo.targeter_shaping`, `ppo.defender_shaping`: only that agent's rewards are shaped
     # (the other team agent's and the attacker's stay as they were).
-    runner, rows, t, plain, shaped = training_data_with_team_setting(algo, f"{agent}_shaping", 3.0)
+    runner, rows, t, plain, shaped = training_data_with_setting(algo, f"{agent}_shaping", 3.0)
     np.testing.assert_array_equal(shaped[ATTACKER.name][Postprocessing.ADVANTAGES], plain[ATTACKER.name][Postprocessing.ADVANTAGES])
     # The team's columns hold T's rows, then D's. GAE is linear in the rewards, so the
     # shaping adds GAE of the shaping rewards alone (values 0) to that agent's advantages.
     gamma, lambda_ = RUN.ppo.discount("team")
     index = runner.rollout.module_ids.index(TEAM.name)
-    column = {"targeter": 1, "defender": 2}[agent]
-    played = rows.modules[:t, :, column] == index
+    played = rows.modules[:t, :, AGENTS.index(agent)] == index
     ended = (rows.outcome[:t] != int(Outcome.RUNNING)).astype(float)
     obs = rows.observations[agent][: t + 1]
     potentials = -3.0 * distance_of(runner.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
@@ -263,7 +262,7 @@ def test_a_team_agents_shaping_reaches_its_rows_and_no_others(algo, agent, dista
 
 def test_the_attackers_win_reward_is_paid_on_the_last_step_of_each_game(algo):
     # `ppo.attacker_win_reward`: +R on the step of each game the attacker won, -R on each it lost.
-    runner, rows, t, plain, rewarded = training_data_with_team_setting(algo, "attacker_win_reward", 50.0, ATTACKER.name)
+    runner, rows, t, plain, rewarded = training_data_with_setting(algo, "attacker_win_reward", 50.0, ATTACKER.name)
     np.testing.assert_array_equal(rewarded[TEAM.name][Postprocessing.ADVANTAGES], plain[TEAM.name][Postprocessing.ADVANTAGES])
     ended = rows.outcome[:t] != int(Outcome.RUNNING)
     won = np.isin(rows.outcome[:t], [int(o) for o in Outcome if o.attacker_wins])
@@ -280,7 +279,7 @@ def test_the_attackers_win_reward_is_paid_on_the_last_step_of_each_game(algo):
 
 def test_a_shared_team_reward_pays_t_and_d_the_sum_of_both(algo):
     # `ppo.team_reward: shared`: T's rows learn from r_T + r_D, D's rows too; the attacker's stay.
-    runner, rows, t, own, shared = training_data_with_team_setting(algo, "team_reward", "shared")
+    runner, rows, t, own, shared = training_data_with_setting(algo, "team_reward", "shared")
     np.testing.assert_array_equal(shared[ATTACKER.name][Postprocessing.ADVANTAGES], own[ATTACKER.name][Postprocessing.ADVANTAGES])
     # GAE is linear in the rewards: T's advantages gain the GAE of D's rewards alone (values
     # 0), D's gain that of T's. The team's columns hold T's rows, then D's.
