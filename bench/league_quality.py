@@ -18,12 +18,14 @@ budget, so each side samples the same env steps in every arm. With exploiters a 
 on its learner's env steps and the exploiter samples about as many again, so that arm's
 phases get half the budget: the same total per side, half of it the learner's.
 
-For each arm's final team (and final attacker): the win rate against every scripted player
-of the other side and every arm's final player of the other side on the same
-``--episodes`` fixed games (Wilson 95% intervals), and its exploitability: ``--seeds``
-best responses of ``--br-env-steps`` each (``league.exploit``; mean and bootstrap 95%
-interval over seeds). Writes ``OUT/league_quality.md``. Restarts reuse finished runs and
-best responses (and resume unfinished runs).
+Each arm is trained once per ``--train-seeds`` seed (``OUT/ARM/seed-S``); an arm's runs
+differ only in their seed. For each run's final team (and final attacker): the win rate
+against every scripted player of the other side and every arm's final player of the other
+side of the same training seed on the same ``--episodes`` fixed games (Wilson 95%
+intervals), and its exploitability: ``--seeds`` best responses of ``--br-env-steps`` each
+(``league.exploit``; their mean). Per arm, the mean exploitability over training seeds with
+a 95% bootstrap interval over the training seeds. Writes ``OUT/league_quality.md``.
+Restarts reuse finished runs and best responses (and resume unfinished runs).
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ import numpy as np
 from envs.scenarios import evaluation_scenarios
 from league.analysis.exploitability import exploitability
 from league.evaluation.engine import play_fixed_games, policies_of
-from league.analysis.statistics import wilson_interval
+from league.analysis.statistics import bootstrap_interval, wilson_interval
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
 from league.studies.runs import finished, train_run, train_runs_on_cluster
@@ -49,10 +51,11 @@ from league.state.run_dir import open_run
 ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance")
 
 
-def arm_overrides(arm: str, args: argparse.Namespace) -> list[str]:
+def arm_overrides(arm: str, args: argparse.Namespace, seed: int) -> list[str]:
+    """The ``--set`` overrides of ``configs/selfplay_league.yaml`` for one arm's run of one training seed."""
     common = [
         "game.attacker_reward=2", f"game.terminal_reward={args.terminal_reward}", "league.attacker_reward_methods=[2]",
-        f"evaluation.episodes={args.episodes}", f"seed={args.seed}",
+        f"evaluation.episodes={args.episodes}", f"seed={seed}",
     ]
     per_side = args.phases // 2 * args.phase_env_steps
     if arm == "protocol":
@@ -66,6 +69,7 @@ def arm_overrides(arm: str, args: argparse.Namespace) -> list[str]:
     exploiters = arm == "league-exploiters"
     return [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
             f"league.phase_env_steps={args.phase_env_steps // 2 if exploiters else args.phase_env_steps}",
+            "league.team_phase_env_steps=null",  # both sides' phases: the same budget
             "league.snapshot_win_rate=1.0", f"league.min_phase_episodes={10**9}",  # a phase ends on its budget only
             f"league.exploiters=[{'attacker, team' if exploiters else ''}]",
             f"league.pfsp={'variance' if arm == 'league-variance' else 'squared'}"]
@@ -118,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--br-env-steps", type=int, default=200_000, help="each best response's training budget")
     parser.add_argument("--seeds", type=int, default=3, help="best responses per final player")
     parser.add_argument("--episodes", type=int, default=1000, help="fixed evaluation games per pair")
-    parser.add_argument("--seed", type=int, default=0, help="the training runs' seed")
+    parser.add_argument("--train-seeds", type=int, nargs="+", default=[0, 1, 2], help="each arm's training seeds")
     parser.add_argument("--sides", nargs="+", default=["team", "attacker"], choices=["team", "attacker"],
                         help="whose exploitability to measure (teams first: the issue's headline)")
     args = parser.parse_args(argv)
@@ -127,65 +131,71 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     walls_file = args.out / "wall_times.json"
     walls = json.loads(walls_file.read_text()) if walls_file.exists() else {}
+    runs = [(arm, seed, args.out / arm / f"seed-{seed}") for arm in args.arms for seed in args.train_seeds]
+    if args.address:  # all runs at once on the cluster; the loop below then reuses them
+        pending = [(arm, seed, run_dir) for arm, seed, run_dir in runs if not finished(run_dir)]
+        tasks = [("selfplay_league", run_dir, arm_overrides(arm, args, seed), f"{arm} seed {seed}", args.out / f"{arm}-seed-{seed}.log")
+                 for arm, seed, run_dir in pending]
+        for (arm, seed, _), node in zip(pending, train_runs_on_cluster(args.address, tasks, args.cpus_per_run)):
+            print(f"{arm} seed {seed}: trained on node {node}")
 
-    finals: dict[str, dict[str, Player]] = {}
-    exploiter_steps: dict[str, dict[str, int]] = {}
-    if args.address:  # all arms at once on the cluster; the loop below then reuses them
-        pending = [arm for arm in args.arms if not finished(args.out / arm)]
-        runs = [("selfplay_league", args.out / arm, arm_overrides(arm, args), arm, args.out / f"{arm}.log") for arm in pending]
-        for arm, node in zip(pending, train_runs_on_cluster(args.address, runs, args.cpus_per_run)):
-            print(f"{arm}: trained on node {node}")
-    for arm in args.arms:
-        run_dir = args.out / arm
+    finals: dict[tuple[str, int], dict[str, Player]] = {}
+    exploiter_steps: dict[tuple[str, int], dict[str, int]] = {}
+    for arm, seed, run_dir in runs:
         if not finished(run_dir):
             started = time.perf_counter()
-            train_run("selfplay_league", run_dir, arm_overrides(arm, args), arm, args.out / f"{arm}.log")
-            walls[arm] = time.perf_counter() - started
+            train_run("selfplay_league", run_dir, arm_overrides(arm, args, seed), f"{arm} seed {seed}", args.out / f"{arm}-seed-{seed}.log")
+            walls[f"{arm} seed {seed}"] = time.perf_counter() - started
             walls_file.write_text(json.dumps(walls, indent=1))
         run, store = open_run(run_dir)
         try:
             players = store.players()
         finally:
             store.close()
-        finals[arm] = {side: final_player(players, side) for side in ("attacker", "team")}
-        exploiter_steps[arm] = {side: getattr(final_player(players, side, "exploiter_snapshot"), "env_steps", 0)
-                                for side in ("attacker", "team")}
-        # every arm has the same game and scripted players (arm_overrides changes only the league)
+        finals[arm, seed] = {side: final_player(players, side) for side in ("attacker", "team")}
+        exploiter_steps[arm, seed] = {side: getattr(final_player(players, side, "exploiter_snapshot"), "env_steps", 0)
+                                      for side in ("attacker", "team")}
+        # every run has the same game and scripted players (arm_overrides changes only the league and the seed)
         scripted = {side: [p for p in players if p.side == side and p.kind == "scripted"] for side in ("attacker", "team")}
 
     positions = evaluation_scenarios(run.game.scenario, args.episodes)
     lines = [
         "# Is the league any good? (bench/league_quality.py)", "",
         f"Settings: `selfplay_league.yaml`, method-2 attacker, terminal reward +-{args.terminal_reward:g}, "
-        f"{args.phases // 2 * args.phase_env_steps:,} env steps per side in every arm, run seed {args.seed}; "
-        f"{args.episodes} fixed evaluation games per pair (Wilson 95%); exploitability: {args.seeds} best responses "
-        f"of {args.br_env_steps:,} env steps each (mean, bootstrap 95% over seeds). Wall time per training run: "
-        + ", ".join(f"{arm} {walls[arm]:.0f} s" for arm in args.arms if arm in walls) + ".",
+        f"{args.phases // 2 * args.phase_env_steps:,} env steps per side in every arm, training seeds "
+        f"{', '.join(map(str, args.train_seeds))}; {args.episodes} fixed evaluation games per pair (Wilson 95%); "
+        f"exploitability: {args.seeds} best responses of {args.br_env_steps:,} env steps each per final player "
+        "(their mean), and per arm the mean over training seeds (bootstrap 95% over training seeds). Wall time per "
+        "training run: " + ", ".join(f"{label} {seconds:.0f} s" for label, seconds in walls.items()) + ".",
     ]
     for side in args.sides:
         other = other_side(side)
-        # (player, its run directory): a scripted player needs none, a learned one its module from there
-        columns = [(p, None) for p in scripted[other]] + [(finals[arm][other], args.out / arm) for arm in args.arms]
-        titles = [p.name.removeprefix("scripted-") for p in scripted[other]] + [f"{arm} {finals[arm][other].name}" for arm in args.arms]
-        lines += ["", f"## Final {side}s: win rate against the other side, and exploitability", "",
-                  f"| arm | {side} | env steps (learner + exploiter) | " + " | ".join(titles) + " | exploitability (per seed) |",
-                  "| --- " * (len(titles) + 4) + "|"]
-        for arm in args.arms:
-            player = finals[arm][side]
+        titles = [p.name.removeprefix("scripted-") for p in scripted[other]] + [f"{arm}'s final {other}" for arm in args.arms]
+        lines += ["", f"## Final {side}s: win rate against the other side (same training seed), and exploitability", "",
+                  f"| arm | seed | {side} | env steps (learner + exploiter) | " + " | ".join(titles) + " | exploitability (per best response) |",
+                  "| --- " * (len(titles) + 5) + "|"]
+        by_arm: dict[str, list[float]] = {arm: [] for arm in args.arms}
+        for arm, seed, run_dir in runs:
+            player = finals[arm, seed][side]
+            # (player, its run directory): a scripted player needs none, a learned one its module from there
+            columns = [(p, None) for p in scripted[other]] + [(finals[a, seed][other], args.out / a / f"seed-{seed}") for a in args.arms]
             cells = []
             for opponent, home in columns:
-                pair = {**policies_of(player, args.out / arm), **policies_of(opponent, home)}
+                pair = {**policies_of(player, run_dir), **policies_of(opponent, home)}
                 result = play_fixed_games(run.game, positions, pair)
                 wins = wins_of(side, int(result.attacker_wins.sum()), args.episodes)
                 cells.append(win_cell(wins, args.episodes))
-            found = exploitability_of(args.out / arm, player, args)
-            interval = found.interval()
+            found = exploitability_of(run_dir, player, args)
+            by_arm[arm].append(found.mean)
             seeds = ", ".join(f"{r.win_rate:.3f}" for r in found.results)
-            spread = f" [{interval[0]:.3f}, {interval[1]:.3f}]" if interval else ""
-            steps = f"{player.env_steps:,}" + (f" + {exploiter_steps[arm][side]:,}" if exploiter_steps[arm][side] else "")
-            lines.append(f"| {arm} | {player.name} | {steps} | " + " | ".join(cells)
-                         + f" | {found.mean:.3f}{spread} ({seeds}) |")
+            steps = f"{player.env_steps:,}" + (f" + {exploiter_steps[arm, seed][side]:,}" if exploiter_steps[arm, seed][side] else "")
+            lines.append(f"| {arm} | {seed} | {player.name} | {steps} | " + " | ".join(cells) + f" | {found.mean:.3f} ({seeds}) |")
             print(lines[-1], flush=True)
+        lines += ["", f"Exploitability of the final {side}, mean over training seeds:", "",
+                  "| arm | mean | bootstrap 95% over training seeds |", "| --- | --- | --- |"]
+        for arm, values in by_arm.items():
+            spread = "[{:.3f}, {:.3f}]".format(*bootstrap_interval(values)) if len(values) > 1 else "(one seed)"
+            lines.append(f"| {arm} | {np.mean(values):.3f} | {spread} |")
     (args.out / "league_quality.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

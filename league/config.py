@@ -76,6 +76,9 @@ class PPOSettings(Strict):
     direction, so with the game's terminal reward alone the method-2 attacker learned to fly
     about as lead intercept does and won about as often (docs/results/flagship.md). Returns
     in curves, evaluations and metrics stay the game's. Needs ``resources.sampler: fast``."""
+    attacker_win_reward_methods: list[Literal[1, 2, 3]] | None = None
+    """The reward methods whose attackers get ``attacker_win_reward``; default: every method.
+    A league of several methods (``league.attacker_reward_methods``) may pay it to some only."""
     team_reward: Literal["own", "shared"] = "own"
     """What T and D learn from: ``own``, each its own reward (Eq. 10, 11); ``shared``, each the
     team's, the sum of both per step (what the team return measures), so that D is paid for
@@ -106,6 +109,11 @@ class PPOSettings(Strict):
         """Rows per minibatch of the ``side`` learner's updates."""
         rows_per_env_step = 2 if side == "team" and self.minibatch_counts == "env_steps" else 1  # the team: T and D
         return rows_per_env_step * self.minibatch_size
+
+    def win_reward(self, reward_method: int) -> float:
+        """``attacker_win_reward`` of an attacker of ``reward_method``."""
+        methods = self.attacker_win_reward_methods
+        return self.attacker_win_reward if methods is None or reward_method in methods else 0.0
 
     def discount(self, side: Side) -> tuple[float, float]:
         """``(gamma, lambda)`` of the ``side`` learner."""
@@ -202,6 +210,9 @@ class LeagueSettings(Strict):
     """...over at least this many episodes..."""
     phase_env_steps: int = Field(100_000, ge=1)
     """...or once it has sampled this many env steps."""
+    team_phase_env_steps: int | None = Field(None, ge=1)
+    """Self-play mode: the team's phases end after this many env steps instead (default:
+    ``phase_env_steps``); an attacker phase's budget is shared by its attackers, the team's is its own."""
     pfsp: Literal["squared", "variance", "uniform"] = "squared"
     """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat."""
     attacker_reward_methods: list[Literal[1, 2, 3]] | None = None

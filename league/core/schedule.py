@@ -76,9 +76,15 @@ class SelfPlaySchedule:
     def opponents(self, index: int, scripted: list[Player], snapshots: list[Player]) -> list[Player]:
         return scripted + snapshots
 
+    def budget(self, side: str) -> int:
+        """Env steps after which a phase of ``side`` ends."""
+        league = self.league
+        team_budget = league.team_phase_env_steps
+        return team_budget if side == "team" and team_budget is not None else league.phase_env_steps
+
     def finished(self, phase: PhaseState) -> bool:
         league = self.league
-        if phase.env_steps >= league.phase_env_steps:
+        if phase.env_steps >= self.budget(phase.side):
             return True
         return phase.episodes >= league.min_phase_episodes and phase.learner_wins / phase.episodes >= league.snapshot_win_rate
 

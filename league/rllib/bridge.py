@@ -85,7 +85,7 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
             "lambda_": lambda_,
             "targeter_shaping": run.ppo.targeter_shaping if side == "team" else 0.0,
             "defender_shaping": run.ppo.defender_shaping if side == "team" else 0.0,
-            "attacker_win_reward": run.ppo.attacker_win_reward if side == "attacker" else 0.0,
+            "attacker_win_reward": run.ppo.win_reward(reward_method) if side == "attacker" else 0.0,
             "team_reward": run.ppo.team_reward if side == "team" else "own",
             "explore_when_frozen": run.league.frozen_players_explore,  # read by the fast sampler
         },

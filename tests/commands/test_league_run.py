@@ -8,6 +8,12 @@ from pathlib import Path
 
 import pytest
 
+from envs.scripted import PLAYERS
+
+# Every scripted team the game has (each scripted targeter with each scripted defender).
+EVERY_SCRIPTED_TEAM = "".join(
+    f"\n    - {{targeter: {t}, defender: {d}}}" for t in PLAYERS["targeter"] for d in PLAYERS["defender"]
+)
 TINY = """
 name: tiny
 seed: 1
@@ -19,6 +25,7 @@ league:
   selfplay_phases: {phases}
   min_phase_episodes: 100000
   phase_env_steps: {phase_steps}
+  scripted_teams:{every_team}
 evaluation: {{episodes: 20}}
 checkpoint_every: 1
 """
@@ -51,7 +58,7 @@ def finish(proc) -> str:
 def tiny_config(tmp_path):
     def make(phases, phase_steps):
         path = tmp_path / f"tiny_{phases}_{phase_steps}.yaml"
-        path.write_text(TINY.format(phases=phases, phase_steps=phase_steps))
+        path.write_text(TINY.format(phases=phases, phase_steps=phase_steps, every_team=EVERY_SCRIPTED_TEAM))
         return str(path)
 
     return make
@@ -79,8 +86,15 @@ def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
         SELECT l.env_steps, (SELECT s.env_steps FROM players s WHERE s.parent = l.id ORDER BY s.version DESC LIMIT 1)
         FROM players l WHERE l.kind = 'learner'""")
     assert all(learner == snapshot for learner, snapshot in steps), steps
-    assert query(run_dir, "SELECT COUNT(DISTINCT attacker || '-' || team) FROM matches WHERE source = 'evaluation'")[0][0] == 4 * 3  # attackers: scripted, v0-v2; teams: scripted, v0, v1
-    assert (run_dir / "evaluation.md").read_text().count("\n| ") >= 12
+    # Every scripted team combination is in the attackers' pool: a player, trained against, evaluated.
+    scripted_teams = query(run_dir, "SELECT id FROM players WHERE side = 'team' AND kind = 'scripted'")
+    assert len(scripted_teams) == len(PLAYERS["targeter"]) * len(PLAYERS["defender"]) == 4
+    trained_against = query(run_dir, """
+        SELECT DISTINCT m.team FROM matches m JOIN players t ON t.id = m.team
+        WHERE m.source = 'training' AND t.kind = 'scripted'""")
+    assert sorted(trained_against) == sorted(scripted_teams)
+    assert query(run_dir, "SELECT COUNT(DISTINCT attacker || '-' || team) FROM matches WHERE source = 'evaluation'")[0][0] == 4 * 6  # attackers: scripted, v0-v2; teams: 4 scripted, v0, v1
+    assert (run_dir / "evaluation.md").read_text().count("\n| ") >= 24
     assert list((run_dir / "tensorboard").glob("events.out.tfevents.*"))
     last_checkpoint = query(run_dir, "SELECT path FROM checkpoints ORDER BY iteration DESC LIMIT 1")[0][0]
     assert (run_dir / last_checkpoint / "rllib_checkpoint.json").exists()

@@ -43,6 +43,14 @@ def test_selfplay_alternates_against_the_whole_pool_and_ends_on_wins_or_steps():
     assert schedule.finished(PhaseState(0, "attacker", 0, episodes=10, learner_wins=0, env_steps=10_000))
 
 
+def test_the_team_phases_may_have_their_own_budget():
+    run = RunConfig(name="s", league={"min_phase_episodes": 10**6, "phase_env_steps": 10_000, "team_phase_env_steps": 25_000})
+    schedule = schedule_of(run)
+    assert schedule.finished(PhaseState(0, "attacker", 0, env_steps=10_000))
+    assert not schedule.finished(PhaseState(1, "team", 0, env_steps=24_999))
+    assert schedule.finished(PhaseState(1, "team", 0, env_steps=25_000))
+
+
 def test_a_protocol_phase_can_meet_the_scripted_players_and_the_newest_snapshot():
     run = RunConfig(name="p", league={"mode": "protocol", "phases": [
         {"learner": "attacker", "env_steps": 100}, {"learner": "team", "env_steps": 50, "opponents": "scripted_and_latest"}]})

@@ -12,7 +12,7 @@ from envs.agents import AGENTS, Outcome
 from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal_distance
 from league.core.match_plan import MatchPlan
 from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO, training_batch
-from league.rllib.bridge import build_config, episode_outcomes, set_trainable
+from league.rllib.bridge import build_config, episode_outcomes, learner_spec, set_trainable
 from league.rollout.train_batch import gae, minibatch_rows, potential_shaping
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
@@ -275,6 +275,15 @@ def test_the_attackers_win_reward_is_paid_on_the_last_step_of_each_game(algo):
     difference = rewarded[ATTACKER.name][Postprocessing.ADVANTAGES] - plain[ATTACKER.name][Postprocessing.ADVANTAGES]
     # float32 columns of advantages of size ~50: rounding ~4e-6.
     np.testing.assert_allclose(difference, added[played], rtol=0, atol=2e-5)
+
+
+def test_the_attackers_win_reward_goes_to_the_listed_reward_methods_only():
+    # `ppo.attacker_win_reward_methods`: a league of methods 1-3 may pay it to methods 2 and 3 only.
+    ppo = {**RUN.ppo.model_dump(), "attacker_win_reward": 70.0}
+    for methods, paid in ((None, [70.0, 70.0, 70.0]), ([2, 3], [0.0, 70.0, 70.0])):
+        run = RunConfig(**{**RUN.model_dump(), "ppo": {**ppo, "attacker_win_reward_methods": methods}})
+        assert [learner_spec(run, "attacker", m).model_config["attacker_win_reward"] for m in (1, 2, 3)] == paid
+        assert learner_spec(run, "team").model_config["attacker_win_reward"] == 0.0
 
 
 def test_a_shared_team_reward_pays_t_and_d_the_sum_of_both(algo):

@@ -32,9 +32,9 @@ def side_budgets(run) -> dict[str, int]:
 
 
 def test_every_arm_gives_both_sides_the_same_total(league_quality):
-    args = argparse.Namespace(terminal_reward=30.0, episodes=100, seed=1, phases=4, phase_env_steps=50_000)
+    args = argparse.Namespace(terminal_reward=30.0, episodes=100, phases=4, phase_env_steps=50_000)
     for arm in league_quality.ARMS:
-        run = load_config("selfplay_league", league_quality.arm_overrides(arm, args))
+        run = load_config("selfplay_league", league_quality.arm_overrides(arm, args, 1))
         assert (run.game.attacker_reward, run.game.terminal_reward, run.seed) == (2, 30.0, 1)
         assert run.league.attacker_reward_methods == [2]
         budgets = side_budgets(run)
@@ -44,5 +44,13 @@ def test_every_arm_gives_both_sides_the_same_total(league_quality):
         assert run.league.exploiters == (["attacker", "team"] if arm == "league-exploiters" else [])
         if run.league.mode == "selfplay":  # phases end on their budget, never on a win rate
             assert run.league.min_phase_episodes > 10**6
-    naive = load_config("selfplay_league", league_quality.arm_overrides("naive", args)).league.phases
+    naive = load_config("selfplay_league", league_quality.arm_overrides("naive", args, 1)).league.phases
     assert [p.opponents for p in naive] == ["scripted", "latest", "latest", "latest"]
+
+
+def test_an_arms_training_seeds_differ_only_in_their_seed(league_quality):
+    args = argparse.Namespace(terminal_reward=30.0, episodes=100, phases=4, phase_env_steps=50_000)
+    for arm in league_quality.ARMS:
+        runs = [load_config("selfplay_league", league_quality.arm_overrides(arm, args, seed)).model_dump() for seed in (0, 1, 2)]
+        assert [run.pop("seed") for run in runs] == [0, 1, 2], arm
+        assert runs[0] == runs[1] == runs[2], arm
