@@ -69,6 +69,8 @@ CREATE TABLE IF NOT EXISTS matches (
     outcome TEXT NOT NULL,           -- an envs.agents.Outcome label
     count INTEGER NOT NULL
 );
+-- every iteration's ratings sum the outcomes per pair: read in order from this index, not sorted anew
+CREATE INDEX IF NOT EXISTS matches_by_pair ON matches (attacker, team, outcome, source, iteration, count);
 CREATE TABLE IF NOT EXISTS ratings (
     iteration INTEGER NOT NULL,
     player INTEGER NOT NULL REFERENCES players(id),
