@@ -132,11 +132,14 @@ def main(argv: list[str] | None = None) -> int:
     walls_file = args.out / "wall_times.json"
     walls = json.loads(walls_file.read_text()) if walls_file.exists() else {}
     runs = [(arm, seed, args.out / arm / f"seed-{seed}") for arm in args.arms for seed in args.train_seeds]
+
+    def task(arm: str, seed: int, run_dir: Path) -> tuple:
+        """``train_run``'s arguments for one arm's run of one training seed."""
+        return "selfplay_league", run_dir, arm_overrides(arm, args, seed), f"{arm} seed {seed}", args.out / f"{arm}-seed-{seed}.log"
+
     if args.address:  # all runs at once on the cluster; the loop below then reuses them
-        pending = [(arm, seed, run_dir) for arm, seed, run_dir in runs if not finished(run_dir)]
-        tasks = [("selfplay_league", run_dir, arm_overrides(arm, args, seed), f"{arm} seed {seed}", args.out / f"{arm}-seed-{seed}.log")
-                 for arm, seed, run_dir in pending]
-        for (arm, seed, _), node in zip(pending, train_runs_on_cluster(args.address, tasks, args.cpus_per_run)):
+        pending = [run for run in runs if not finished(run[2])]
+        for (arm, seed, _), node in zip(pending, train_runs_on_cluster(args.address, [task(*run) for run in pending], args.cpus_per_run)):
             print(f"{arm} seed {seed}: trained on node {node}")
 
     finals: dict[tuple[str, int], dict[str, Player]] = {}
@@ -144,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     for arm, seed, run_dir in runs:
         if not finished(run_dir):
             started = time.perf_counter()
-            train_run("selfplay_league", run_dir, arm_overrides(arm, args, seed), f"{arm} seed {seed}", args.out / f"{arm}-seed-{seed}.log")
+            train_run(*task(arm, seed, run_dir))
             walls[f"{arm} seed {seed}"] = time.perf_counter() - started
             walls_file.write_text(json.dumps(walls, indent=1))
         run, store = open_run(run_dir)
