@@ -9,7 +9,10 @@ over seeds with a 95% bootstrap interval over the seeds:
   beside the best scripted attacker against that team;
 * the final team (the newest team snapshot) against each scripted attacker and the final
   attackers, beside the best scripted team against that attacker (the lowest attacker win rate);
-* the Nash weight of the trained players on each side of the run's final meta-game.
+* the Nash weight of the trained players on each side of the run's final meta-game;
+* with ``--untrained``, also the final team against its untrained version (``team-v0``)
+  against every attacker of the league, and each final attacker against its own version 0
+  against every team.
 
 A row is a "win" for the trained player when its 95% Wilson interval lies wholly on the good
 side of the best scripted player's. Extra ``--set`` overrides go to every run.
@@ -51,8 +54,9 @@ def rate(table: dict, attacker, team) -> tuple[float, float, float]:
     return (wins / games, *wilson_interval(wins, games))
 
 
-def measure(run_dir: Path) -> list[dict]:
-    """One row per comparison of a trained player with the best scripted player."""
+def measure(run_dir: Path, untrained: bool = False) -> list[dict]:
+    """One row per comparison of a trained player with the best scripted player (and, with
+    ``untrained``, with its own version 0)."""
     _, store = open_run(run_dir)
     try:
         players, evaluations = store.players(), store.newest_evaluation_rows()
@@ -65,7 +69,8 @@ def measure(run_dir: Path) -> list[dict]:
     for p in players:
         if p.side == "attacker" and p.kind == "snapshot":
             final_attackers[p.reward_method] = p
-    final_team = [p for p in players if p.side == "team" and p.kind == "snapshot"][-1]
+    team_snapshots = [p for p in players if p.side == "team" and p.kind == "snapshot"]
+    final_team = team_snapshots[-1]
     rows = []
     for attacker in final_attackers.values():
         for team in scripted_teams:
@@ -78,6 +83,19 @@ def measure(run_dir: Path) -> list[dict]:
         mine, theirs = rate(table, attacker, final_team), rate(table, attacker, best)
         rows.append(dict(player=final_team.name, against=attacker.name, rate=mine, best=best.name, best_rate=theirs,
                          better=mine[2] < theirs[1], worse=mine[1] > theirs[2]))
+    if untrained:
+        attackers = [p for p in players if p.side == "attacker" and p.kind in ("scripted", *TRAINED)]
+        teams = [p for p in players if p.side == "team" and p.kind in ("scripted", *TRAINED)]
+        for attacker in attackers:
+            mine, theirs = rate(table, attacker, final_team), rate(table, attacker, team_snapshots[0])
+            rows.append(dict(player=final_team.name, against=attacker.name, rate=mine, best=team_snapshots[0].name,
+                             best_rate=theirs, better=mine[2] < theirs[1], worse=mine[1] > theirs[2]))
+        for attacker in final_attackers.values():
+            first = next(p for p in attackers if p.kind == "snapshot" and p.reward_method == attacker.reward_method)
+            for team in teams:
+                mine, theirs = rate(table, attacker, team), rate(table, first, team)
+                rows.append(dict(player=attacker.name, against=team.name, rate=mine, best=first.name,
+                                 best_rate=theirs, better=mine[1] > theirs[2], worse=mine[2] < theirs[1]))
     meta, why_not = league_meta_game(players, evaluations)
     if meta is None:
         raise SystemExit(f"{run_dir}: no meta-game ({why_not})")
@@ -96,7 +114,7 @@ def report(per_seed: dict[int, list[dict]]) -> str:
     seeds = sorted(per_seed)
     lines = [
         "| trained player | against | " + " | ".join(f"seed {s}" for s in seeds)
-        + " | mean over seeds [bootstrap 95%] | best scripted player | its rate (seed mean) |",
+        + " | mean over seeds [bootstrap 95%] | reference player | its rate (seed mean) |",
         "| --- | --- | " + " | ".join("---" for _ in seeds) + " | --- | --- | --- |",
     ]
     for index, first in enumerate(per_seed[seeds[0]]):
@@ -122,6 +140,8 @@ def main() -> None:
     parser.add_argument("--config", required=True)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--out", type=Path, default=Path("runs/beats_scripted"))
+    parser.add_argument("--untrained", action="store_true",
+                        help="also compare each final player with its untrained version 0")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
     name = Path(args.config).stem
@@ -129,7 +149,7 @@ def main() -> None:
     for seed in args.seeds:
         run_dir = args.out / name / f"seed-{seed}"
         train(args.config, run_dir, seed, args.overrides)
-        per_seed[seed] = measure(run_dir)
+        per_seed[seed] = measure(run_dir, args.untrained)
     print(report(per_seed))
 
 
