@@ -25,6 +25,7 @@ TINY_SMOKE = [
     "--set", "evaluation.episodes=20", "--set", "evaluation.curve_episodes=20",
     "--set", "evaluation.curve_every_env_steps=1024",
     "--set", "evaluation.workers=0",  # the same numbers as on workers (tests/evaluation/test_engine.py), without their start-up
+    "--set", "checkpoint_every=1",
 ]
 RUN_TIMEOUT = 600
 
