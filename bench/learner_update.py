@@ -11,9 +11,12 @@ configured), each from the same weights and optimizer state:
 * ``league``: ``LeaguePPOLearner.update`` (its Adam steps in foreach passes).
 
 Both take the same gradient steps (``tests/rllib/test_fast_path.py``); one process runs both, so
-a shared machine's load moves both alike.
+a shared machine's load moves both alike. With ``--against bf16`` the first arm is instead
+``bf16``: ``LeaguePPOLearner.update`` with ``ppo.bf16`` (float32 where the CPU has no native
+bf16; the bench says which).
 
     PYTHONPATH=. .venv/bin/python bench/learner_update.py --config attacker_method2 --rounds 8
+    PYTHONPATH=. .venv/bin/python bench/learner_update.py --against bf16 --set 'ppo.team_hidden=[256, 256]'
 
 ``--profile FILE`` writes a cProfile of the ``league`` rounds. The last line reads ``league
 L s, rllib R s, league/rllib Q (medians of N rounds; CPU: ...)``: wall seconds, and the CPU
@@ -36,6 +39,7 @@ from league.core.players import Player
 from league.core.match_plan import MatchPlan
 from league.rllib.algorithm import minibatch_size, training_batch
 from league.rllib.bridge import build_config, set_trainable
+from league.rllib.learner import native_bf16
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.utils.metrics import NUM_ENV_STEPS_SAMPLED_LIFETIME, NUM_MODULE_STEPS_TRAINED_LIFETIME
 
@@ -48,9 +52,14 @@ def main() -> None:
     parser.add_argument("--config", default="attacker_method2")
     parser.add_argument("--rounds", type=int, default=8)
     parser.add_argument("--profile", default=None, help="write a cProfile of the league rounds here")
+    parser.add_argument("--against", choices=["rllib", "bf16"], default="rllib",
+                        help="the other arm: RLlib's update, or ours with ppo.bf16")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    run = load_config(args.config, ["resources.num_env_runners=0", "resources.sampler=fast"])
+    run = load_config(args.config, ["resources.num_env_runners=0", "resources.sampler=fast", *args.overrides])
+    if args.against == "bf16":
+        print(f"native bf16 on this CPU: {native_bf16()}")
     ray.init(address="local", num_cpus=1, include_dashboard=False)
     try:
         plan = MatchPlan([TEAM.modules()], [[{"attacker": ATTACKER.name}]], [[1.0]], seed=0)
@@ -68,8 +77,9 @@ def main() -> None:
             learner.set_state(copy.deepcopy(start))  # (a restored optimizer keeps the arrays it is given)
             learner.module.set_state(start["rl_module"])
             for group in learner.get_optimizer(TEAM.name).param_groups:
-                group["foreach"] = arm == "league"  # RLlib's Adam steps tensor by tensor
-            method = type(learner).update if arm == "league" else PPOTorchLearner.update
+                group["foreach"] = arm != "rllib"  # RLlib's Adam steps tensor by tensor
+            learner.module[TEAM.name].model_config["bf16"] = arm == "bf16"
+            method = PPOTorchLearner.update if arm == "rllib" else type(learner).update
             fresh = training_batch([data], env_steps=config.total_train_batch_size)  # RLlib's shuffles it in place
             if profiler and arm == "league":
                 profiler.enable()
@@ -87,7 +97,7 @@ def main() -> None:
                 profiler.disable()
             return wall, cpu
 
-        arms = ("rllib", "league")
+        arms = (args.against, "league")
         for arm in arms:  # warm-up
             update(arm)
         times = {arm: [] for arm in arms}
@@ -103,10 +113,10 @@ def main() -> None:
             print(f"{arm} wall s: {walls} | CPU s: {cpus}")
 
         def medians(which: int) -> str:
-            league, rllib = (statistics.median(t[which] for t in times[arm]) for arm in ("league", "rllib"))
-            ratios = [a[which] / b[which] for a, b in zip(times["league"], times["rllib"])]
+            league, other = (statistics.median(t[which] for t in times[arm]) for arm in ("league", args.against))
+            ratios = [a[which] / b[which] for a, b in zip(times["league"], times[args.against])]
             return (
-                f"league {league:.3f} s, rllib {rllib:.3f} s, league/rllib {statistics.median(ratios):.2f} "
+                f"league {league:.3f} s, {args.against} {other:.3f} s, league/{args.against} {statistics.median(ratios):.2f} "
                 f"(per round {min(ratios):.2f} to {max(ratios):.2f})"
             )
 

@@ -103,12 +103,27 @@ class PPOSettings(Strict):
     num_epochs: int = Field(5, ge=1)
     """Passes over each training batch."""
     hidden: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [64, 64], min_length=1)
-    """Hidden layer sizes of both the policy and the value network."""
+    """Hidden layer sizes of both the policy and the value network (the attacker's, and the
+    team's unless ``team_hidden`` is set)."""
+    team_hidden: list[Annotated[int, Field(ge=1)]] | None = Field(None, min_length=1)
+    """Hidden layer sizes of the team's policy and value networks; ``None``: ``hidden``. Against
+    one frozen attacker, ``[256, 256]`` made the team beat the best scripted team where
+    ``[64, 64]`` did not, at 4 to 5 times the training cost (docs/results/learning.md)."""
+    bf16: bool = False
+    """Compute the networks' forward and backward passes in the learner's update under
+    ``torch.autocast`` to bfloat16 where the CPU multiplies bfloat16 natively (AMX or AVX-512
+    BF16; ``league.rllib.learner.native_bf16``), float32 elsewhere (the run says which when it
+    starts); the loss, the gradients and Adam stay float32, and sampling stays float32. Pays at
+    wide networks only (docs/performance.md). Needs ``resources.sampler: fast``."""
 
     def minibatch(self, side: Side) -> int:
         """Rows per minibatch of the ``side`` learner's updates."""
         rows_per_env_step = 2 if side == "team" and self.minibatch_counts == "env_steps" else 1  # the team: T and D
         return rows_per_env_step * self.minibatch_size
+
+    def hidden_of(self, side: Side) -> list[int]:
+        """Hidden layer sizes of the ``side`` learner's networks."""
+        return self.team_hidden if side == "team" and self.team_hidden is not None else self.hidden
 
     def win_reward(self, reward_method: int) -> float:
         """``attacker_win_reward`` of an attacker of ``reward_method``."""
@@ -312,7 +327,7 @@ class RunConfig(Strict):
             raise ValueError("ppo.minibatch_counts: env_steps needs resources.sampler: fast (RLlib's PPO has one minibatch size)")
         if self.ppo.team_reward != "own" and self.resources.sampler != "fast":
             raise ValueError("ppo.team_reward: shared needs resources.sampler: fast (RLlib's learner pays each agent its own reward)")
-        for key in ("targeter_shaping", "defender_shaping", "attacker_win_reward"):
+        for key in ("targeter_shaping", "defender_shaping", "attacker_win_reward", "bf16"):
             if getattr(self.ppo, key) and self.resources.sampler != "fast":
                 raise ValueError(f"ppo.{key} needs resources.sampler: fast (RLlib's learner connectors would not apply it)")
         if not self.league.frozen_players_explore and self.resources.sampler == "standard":

@@ -31,7 +31,7 @@ from league.core.players import Player
 from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
 from league.rllib.env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, seed_iteration
-from league.rllib.learner import LeaguePPOLearner
+from league.rllib.learner import LeaguePPOLearner, native_bf16
 from league.rllib.modules import ActorCriticModule, ScriptedModule
 from ray.rllib.algorithms.algorithm import Algorithm
 from ray.rllib.algorithms.ppo import PPO, PPOConfig
@@ -78,7 +78,8 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
         model_config={
             "actor_inputs": actor_inputs(run, agent),
             "critic": "local" if side == "attacker" else "global",
-            "hidden": run.ppo.hidden,
+            "hidden": run.ppo.hidden_of(side),
+            "bf16": run.ppo.bf16,  # asked for; the learner computes in bf16 where the CPU has it natively
             "reward_method": reward_method,
             # The fast sampler's GAE reads them per module (the team's may differ: `PPOSettings.team_gamma`).
             "gamma": gamma,
@@ -90,6 +91,11 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
             "explore_when_frozen": run.league.frozen_players_explore,  # read by the fast sampler
         },
     )
+
+
+def learner_computes_in_bf16(run: RunConfig) -> bool:
+    """Whether this process's learner runs its networks in bfloat16 (``PPOSettings.bf16``)."""
+    return run.ppo.bf16 and native_bf16()
 
 
 def scripted_spec(run: RunConfig, agent: str, name: str) -> RLModuleSpec:

@@ -102,10 +102,16 @@ class LossTerms:
     value_targets: torch.Tensor
 
 
-def ppo_loss(module: Any, batch: Mapping[str, torch.Tensor], c: PPOCoefficients) -> tuple[torch.Tensor, LossTerms]:
-    """The total loss of ``module`` on the minibatch ``batch`` and its terms."""
-    # RLlib: forward_train, then TorchDiagGaussian.from_logits: chunk, exp.
-    loc, log_std = module.action_dist_inputs(batch[Columns.OBS]).chunk(2, dim=-1)
+def ppo_loss(
+    module: Any, batch: Mapping[str, torch.Tensor], c: PPOCoefficients, bf16: bool = False
+) -> tuple[torch.Tensor, LossTerms]:
+    """The total loss of ``module`` on the minibatch ``batch`` and its terms; with ``bf16`` the
+    networks run under bfloat16 autocast and their outputs come back float32, so that the
+    ratios, logs and means of the loss keep float32's precision."""
+    with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+        # RLlib: forward_train, then TorchDiagGaussian.from_logits: chunk, exp.
+        dist_inputs = module.action_dist_inputs(batch[Columns.OBS]).float()
+    loc, log_std = dist_inputs.chunk(2, dim=-1)
     scale = log_std.exp()
     # Normal.log_prob(actions), summed over the action's dimensions.
     var = scale**2
@@ -124,7 +130,8 @@ def ppo_loss(module: Any, batch: Mapping[str, torch.Tensor], c: PPOCoefficients)
     surrogate = torch.min(
         advantages * logp_ratio, advantages * torch.clamp(logp_ratio, 1 - c.clip_param, 1 + c.clip_param)
     )
-    values = module.compute_values({Columns.OBS: batch[Columns.OBS]})
+    with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+        values = module.compute_values({Columns.OBS: batch[Columns.OBS]}).float()
     value_targets = batch[Postprocessing.VALUE_TARGETS]
     vf_loss = torch.pow(values - value_targets, 2.0)
     vf_loss_clipped = torch.clamp(vf_loss, 0, c.vf_clip_param)

@@ -415,6 +415,9 @@ class Coordinator:
     def train(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
         """Train to the end; ``stop`` (SIGINT, SIGTERM) ends it between iterations or during sampling and learning."""
         self.log = progress.message
+        if self.run.ppo.bf16:
+            self.log("ppo.bf16: the learner's networks compute in bfloat16" if bridge.learner_computes_in_bf16(self.run)
+                     else "ppo.bf16: this CPU has no native bfloat16 matmuls; the learner computes in float32")
         self.set_trainable(self.state.phase.side)
         while not self.state.training_done:
             if stop:

@@ -46,6 +46,7 @@ def write(tmp_path, text):
         ("name: x\nppo: {defender_shaping: 3}\nresources: {sampler: batched}\n", "defender_shaping"),
         ("name: x\nppo: {attacker_win_reward: 70}\nresources: {sampler: standard}\n", "attacker_win_reward"),
         ("name: x\nppo: {team_reward: shared}\nresources: {sampler: standard}\n", "team_reward"),
+        ("name: x\nppo: {bf16: true}\nresources: {sampler: batched}\n", "bf16"),  # RLlib's own loss has no autocast
         ("name: x\nppo: {team_reward: mine}\n", "ppo.team_reward"),
         ("name: x\nleague: {frozen_players_explore: false}\nresources: {sampler: standard}\n", "frozen_players_explore"),
         ("name: x\nppo: {lr_schedule: [[100, 0.001]]}\n", "lr_schedule"),

@@ -46,7 +46,8 @@ def test_defaults_follow_the_paper():
     "override, named",
     [
         ("nosuch.key=1", "--set nosuch.key=1: nosuch: Extra inputs are not permitted"),
-        ("ppo.lr.x=1", "--set ppo.lr.x=1: ppo.lr:"),
+        ("ppo.gamma.x=1", "--set ppo.gamma.x=1: ppo.gamma:"),  # a key the file does not set
+        ("ppo.lr.x=1", "--set ppo.lr.x: 'lr' is not a section"),  # one it sets
         ("ppo.minibatch_size=999999", "--set ppo.minibatch_size=999999: (top level): Value error, ppo.minibatch_size"),
         ("seeed=1", "(did you mean seed?)"),
         ("ppo.hiden=[8]", "(did you mean ppo.hidden?)"),

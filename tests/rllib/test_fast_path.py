@@ -457,3 +457,52 @@ def test_our_update_without_the_kl_term_trains_as_rllibs_update(algo):
         theirs = {k: v for k, v in rllib_reported[module_id].items() if "throughput" not in k}
         np.testing.assert_equal({k: ours_reported[module_id].get(k) for k in theirs}, theirs, err_msg=module_id)
     assert ours_reported[TEAM.name]["mean_kl_loss"] == 0.0
+
+
+def test_a_team_only_width_builds_the_team_wider_and_the_attacker_as_before():
+    run = RUN.model_copy(update={"ppo": RUN.ppo.model_copy(update={"team_hidden": [32, 8]})})
+    modules = {side: learner_spec(run, side, 2 if side == "attacker" else None).build() for side in ("attacker", "team")}
+    widths = {
+        (side, net): [layer.out_features for layer in getattr(module, net) if isinstance(layer, torch.nn.Linear)]
+        for side, module in modules.items() for net in ("pi", "vf")
+    }
+    # hidden [16] and team_hidden, then the mean of the 2 actions (policy) or the value
+    assert widths == {("attacker", "pi"): [16, 2], ("attacker", "vf"): [16, 1], ("team", "pi"): [32, 8, 2], ("team", "vf"): [32, 8, 1]}
+
+
+def compare_bf16_update(algo, monkeypatch, native: bool):
+    """``compare_updates`` with the team module asking for bf16 on a CPU that has it (``native``) or not."""
+    monkeypatch.setattr("league.rllib.learner.native_bf16", lambda: native)  # the local Learner runs in this process
+
+    def ask(on):
+        def set_it(learner):
+            learner.module[TEAM.name].model_config["bf16"] = on
+
+        [call.get() for call in algo.learner_group.foreach_learner(set_it)]
+
+    ask(True)
+    try:
+        return compare_updates(algo)
+    finally:
+        ask(False)
+
+
+def test_bf16_falls_back_to_float32_where_the_cpu_has_no_native_bf16(algo, monkeypatch):
+    (ours, _), (rllib, _) = compare_bf16_update(algo, monkeypatch, native=False)
+    for module_id in (ATTACKER.name, TEAM.name):  # float32 throughout: RLlib's update to the bit
+        for name, weight in rllib[module_id].items():
+            np.testing.assert_array_equal(ours[module_id][name], weight, err_msg=f"{module_id} {name}")
+
+
+def test_bf16_where_native_runs_the_team_networks_in_bf16_and_stays_near_float32(algo, monkeypatch):
+    # (Forced on: torch's autocast emulates bf16 where the CPU has none, the same rounding.)
+    (ours, reported), (rllib, _) = compare_bf16_update(algo, monkeypatch, native=True)
+    for name, weight in rllib[ATTACKER.name].items():  # the attacker did not ask: float32
+        np.testing.assert_array_equal(ours[ATTACKER.name][name], weight, err_msg=name)
+    differences = {name: np.abs(ours[TEAM.name][name] - weight).max() for name, weight in rllib[TEAM.name].items()}
+    assert max(differences.values()) > 0, "bf16 was not used"
+    # Adam moves a weight by at most lr (1 - beta1) / sqrt(1 - beta2) ~ 3.2 lr per step (the
+    # bias-corrected worst case): from one start, the two updates differ by at most twice that per step.
+    steps = reported[TEAM.name]["num_module_steps_trained"] / 128
+    bound = 2 * 3.2 * RUN.ppo.lr * steps
+    assert max(differences.values()) <= bound, differences
