@@ -39,7 +39,7 @@ from league.core.players import Player
 from league.core.match_plan import MatchPlan
 from league.rllib.algorithm import minibatch_size, training_batch
 from league.rllib.bridge import build_config, set_trainable
-from league.rllib.learner import native_bf16
+from league.rllib.compat import native_bf16
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.utils.metrics import NUM_ENV_STEPS_SAMPLED_LIFETIME, NUM_MODULE_STEPS_TRAINED_LIFETIME
 

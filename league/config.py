@@ -17,7 +17,7 @@ import types
 from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, ValidationInfo, field_validator, model_validator
 
 from envs.config import GameConfig
 from envs.scripted import PAPER_TEAM, PLAYERS
@@ -112,7 +112,7 @@ class PPOSettings(Strict):
     bf16: bool = False
     """Compute the networks' forward and backward passes in the learner's update under
     ``torch.autocast`` to bfloat16 where the CPU multiplies bfloat16 natively (AMX or AVX-512
-    BF16; ``league.rllib.learner.native_bf16``), float32 elsewhere (the run says which when it
+    BF16; ``league.rllib.compat.native_bf16``), float32 elsewhere (the run says which when it
     starts); the loss, the gradients and Adam stay float32, and sampling stays float32. Pays at
     wide networks only (docs/performance.md). Needs ``resources.sampler: fast``."""
 
@@ -464,6 +464,23 @@ def changed_keys(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> 
         elif a != b:
             changed.append(f"{prefix}{key}")
     return changed
+
+
+def added_at_its_default(old: dict[str, Any], key: str, run: RunConfig) -> bool:
+    """Whether the dotted ``key`` is missing from ``old`` (a config dumped by a version without
+    that key) and ``run`` has the key's default, the behaviour of the versions before it."""
+    *sections, name = key.split(".")
+    model: Any = type(run)
+    value: Any = run.model_dump(mode="json")
+    for section in sections:
+        if section not in old:
+            return False
+        old, value, model = old[section], value[section], model.model_fields[section].annotation
+    if name in old or name not in model.model_fields:
+        return False
+    field = model.model_fields[name]
+    default = TypeAdapter(field.annotation).dump_python(field.get_default(call_default_factory=True), mode="json")
+    return value[name] == default
 
 
 def _type_name(annotation: Any) -> str:

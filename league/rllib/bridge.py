@@ -31,7 +31,8 @@ from league.core.players import Player
 from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
 from league.rllib.env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, seed_iteration
-from league.rllib.learner import LeaguePPOLearner, native_bf16
+from league.rllib import compat
+from league.rllib.learner import LeaguePPOLearner
 from league.rllib.modules import ActorCriticModule, ScriptedModule
 from ray.rllib.algorithms.algorithm import Algorithm
 from ray.rllib.algorithms.ppo import PPO, PPOConfig
@@ -95,7 +96,7 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
 
 def learner_computes_in_bf16(run: RunConfig) -> bool:
     """Whether this process's learner runs its networks in bfloat16 (``PPOSettings.bf16``)."""
-    return run.ppo.bf16 and native_bf16()
+    return run.ppo.bf16 and compat.native_bf16()
 
 
 def scripted_spec(run: RunConfig, agent: str, name: str) -> RLModuleSpec:

@@ -1,4 +1,5 @@
-"""Every reach into RLlib's internals, in one place, written for Ray ``RAY_VERSION``.
+"""Every reach into RLlib's internals, in one place, written for Ray ``RAY_VERSION`` (and the
+one into torch's, for the CPU's bf16).
 
 RLlib's public API has no way to do what these functions do; each says what it reads or
 writes and why the league needs it. No other module touches a private RLlib attribute or
@@ -11,6 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import torch
 from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
 from ray.rllib.env.single_agent_episode import SingleAgentEpisode
 from ray.rllib.env.utils.infinite_lookback_buffer import InfiniteLookbackBuffer
@@ -25,6 +27,13 @@ from ray.rllib.utils.metrics import (
 )
 
 RAY_VERSION = "2.60.0"
+
+
+# ---------------------------------------------------------------- torch (2.13)
+def native_bf16() -> bool:
+    """Whether this CPU multiplies bfloat16 natively (AMX or AVX-512 BF16); elsewhere torch
+    emulates bf16 matmuls, slower than float32's. Torch tells only through private helpers."""
+    return torch.cpu._is_amx_tile_supported() or torch.cpu._is_avx512_bf16_supported()
 
 
 # ---------------------------------------------------------------- AlgorithmConfig

@@ -30,12 +30,6 @@ class ClippedStep:
     flat: FlatAdam | None
 
 
-def native_bf16() -> bool:
-    """Whether this CPU multiplies bfloat16 natively (AMX or AVX-512 BF16); elsewhere torch
-    emulates bf16 matmuls, slower than float32's."""
-    return torch.cpu._is_amx_tile_supported() or torch.cpu._is_avx512_bf16_supported()
-
-
 def release(steps: list[ClippedStep] | None) -> None:
     for step in steps or ():
         if step.flat:
@@ -153,7 +147,7 @@ class LeaguePPOLearner(PPOTorchLearner):
         modules = [m for m in batch.policy_batches if self.should_module_be_updated(m, batch)]
         inputs = {m: LossRows(batch.policy_batches[m], self.device) for m in modules}
         coefficients = {m: self._ppo_coefficients(m) for m in modules}
-        bf16 = {m: bool(self.module[m].model_config.get("bf16")) and native_bf16() for m in modules}  # `PPOSettings.bf16`
+        bf16 = {m: bool(self.module[m].model_config.get("bf16")) and compat.native_bf16() for m in modules}  # `PPOSettings.bf16`
         trained = [p for m in modules for _, o in self.get_optimizers_for_module(m) for g in o.param_groups for p in g["params"]]
         for m in modules:
             self.module[m].train()  # as RLlib's forward_train

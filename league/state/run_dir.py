@@ -28,7 +28,7 @@ from typing import Callable
 
 from filelock import FileLock, Timeout
 
-from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, changed_keys, config_hash, saved_run_config
+from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, added_at_its_default, changed_keys, config_hash, saved_run_config
 from league.state.store import DB_NAME, DamagedStoreError, LeagueStore
 
 LOCK_FILE = "run.lock"
@@ -108,11 +108,16 @@ def record_config(store: LeagueStore, run: RunConfig) -> None:
 
 
 def check_config_unchanged(run_dir: Path, run: RunConfig, store: LeagueStore) -> None:
-    """Refuse a resume whose ``config.yaml`` differs from the one the run was created with."""
+    """Refuse a resume whose ``config.yaml`` differs from the one the run was created with
+    (a key that a later version added, at its default, is no change)."""
     recorded = store.get_meta(CONFIG_HASH_META)
     if recorded is None or recorded == config_hash(run):  # runs made before the hash was kept are not checked
         return
-    keys = changed_keys(store.get_meta(CONFIG_META) or {}, run.model_dump(mode="json"))
+    old = store.get_meta(CONFIG_META) or {}
+    differing = changed_keys(old, run.model_dump(mode="json"))
+    keys = [key for key in differing if not added_at_its_default(old, key, run)]
+    if differing and not keys:
+        return
     raise RunDirError(
         f"{run_dir / RUN_CONFIG_FILE} was changed after the run started ({', '.join(keys) or 'formatting of values'}): "
         "undo the change to resume, or start a new run with the new config"

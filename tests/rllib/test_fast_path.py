@@ -472,7 +472,7 @@ def test_a_team_only_width_builds_the_team_wider_and_the_attacker_as_before():
 
 def compare_bf16_update(algo, monkeypatch, native: bool):
     """``compare_updates`` with the team module asking for bf16 on a CPU that has it (``native``) or not."""
-    monkeypatch.setattr("league.rllib.learner.native_bf16", lambda: native)  # the local Learner runs in this process
+    monkeypatch.setattr("league.rllib.compat.native_bf16", lambda: native)  # the local Learner runs in this process
 
     def ask(on):
         def set_it(learner):

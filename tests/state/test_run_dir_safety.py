@@ -487,3 +487,21 @@ def test_set_is_explained_in_the_help(capsys):
     with pytest.raises(SystemExit):
         run.parse_args(["--help"])
     assert "override a config key" in " ".join(capsys.readouterr().out.split())
+
+
+def test_a_run_made_before_a_key_existed_resumes_with_its_default_and_not_with_another_value(run_copy):
+    from league.config import config_hash
+    from league.state.run_dir import CONFIG_HASH_META, CONFIG_META, RunDirError, check_config_unchanged, read_config
+
+    store = LeagueStore(run_copy)
+    older = store.get_meta(CONFIG_META)
+    del older["ppo"]["bf16"]  # as a version without `ppo.bf16` recorded it
+    with store.transaction():
+        store.set_meta(CONFIG_META, older)
+        store.set_meta(CONFIG_HASH_META, "the older version's hash")
+    run_config = read_config(run_copy)
+    check_config_unchanged(run_copy, run_config, store)  # the key at its default: the run as it was
+    with_bf16 = run_config.model_copy(update={"ppo": run_config.ppo.model_copy(update={"bf16": True})})
+    assert config_hash(with_bf16) != config_hash(run_config)
+    with pytest.raises(RunDirError, match=r"was changed after the run started \(ppo.bf16\)"):
+        check_config_unchanged(run_copy, with_bf16, store)
