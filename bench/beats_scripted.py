@@ -54,6 +54,14 @@ def rate(table: dict, attacker, team) -> tuple[float, float, float]:
     return (wins / games, *wilson_interval(wins, games))
 
 
+def comparison(player, against, mine, reference, theirs) -> dict:
+    """A row: ``player``'s attacker win rate ``mine`` against ``against`` beside ``reference``'s
+    ``theirs``, better for an attacker when higher and for a team when lower, intervals apart."""
+    higher, lower = mine[1] > theirs[2], mine[2] < theirs[1]
+    return dict(player=player.name, against=against.name, rate=mine, best=reference.name, best_rate=theirs,
+                better=higher if player.side == "attacker" else lower, worse=lower if player.side == "attacker" else higher)
+
+
 def measure(run_dir: Path, untrained: bool = False) -> list[dict]:
     """One row per comparison of a trained player with the best scripted player (and, with
     ``untrained``, with its own version 0)."""
@@ -75,27 +83,21 @@ def measure(run_dir: Path, untrained: bool = False) -> list[dict]:
     for attacker in final_attackers.values():
         for team in scripted_teams:
             best = max(scripted_attackers, key=lambda a: rate(table, a, team)[0])
-            mine, theirs = rate(table, attacker, team), rate(table, best, team)
-            rows.append(dict(player=attacker.name, against=team.name, rate=mine, best=best.name, best_rate=theirs,
-                             better=mine[1] > theirs[2], worse=mine[2] < theirs[1]))
+            rows.append(comparison(attacker, team, rate(table, attacker, team), best, rate(table, best, team)))
     for attacker in scripted_attackers + list(final_attackers.values()):
         best = min(scripted_teams, key=lambda t: rate(table, attacker, t)[0])
-        mine, theirs = rate(table, attacker, final_team), rate(table, attacker, best)
-        rows.append(dict(player=final_team.name, against=attacker.name, rate=mine, best=best.name, best_rate=theirs,
-                         better=mine[2] < theirs[1], worse=mine[1] > theirs[2]))
+        rows.append(comparison(final_team, attacker, rate(table, attacker, final_team), best, rate(table, attacker, best)))
     if untrained:
         attackers = [p for p in players if p.side == "attacker" and p.kind in ("scripted", *TRAINED)]
         teams = [p for p in players if p.side == "team" and p.kind in ("scripted", *TRAINED)]
+        first_team = team_snapshots[0]
         for attacker in attackers:
-            mine, theirs = rate(table, attacker, final_team), rate(table, attacker, team_snapshots[0])
-            rows.append(dict(player=final_team.name, against=attacker.name, rate=mine, best=team_snapshots[0].name,
-                             best_rate=theirs, better=mine[2] < theirs[1], worse=mine[1] > theirs[2]))
+            rows.append(comparison(final_team, attacker, rate(table, attacker, final_team), first_team,
+                                   rate(table, attacker, first_team)))
         for attacker in final_attackers.values():
             first = next(p for p in attackers if p.kind == "snapshot" and p.reward_method == attacker.reward_method)
             for team in teams:
-                mine, theirs = rate(table, attacker, team), rate(table, first, team)
-                rows.append(dict(player=attacker.name, against=team.name, rate=mine, best=first.name,
-                                 best_rate=theirs, better=mine[1] > theirs[2], worse=mine[2] < theirs[1]))
+                rows.append(comparison(attacker, team, rate(table, attacker, team), first, rate(table, first, team)))
     meta, why_not = league_meta_game(players, evaluations)
     if meta is None:
         raise SystemExit(f"{run_dir}: no meta-game ({why_not})")

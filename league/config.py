@@ -466,12 +466,13 @@ def changed_keys(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> 
     return changed
 
 
-def added_at_its_default(old: dict[str, Any], key: str, run: RunConfig) -> bool:
+def added_at_its_default(old: dict[str, Any], new: dict[str, Any], key: str) -> bool:
     """Whether the dotted ``key`` is missing from ``old`` (a config dumped by a version without
-    that key) and ``run`` has the key's default, the behaviour of the versions before it."""
+    that key) and ``new`` (a ``RunConfig`` dumped) has the key's default, the behaviour of the
+    versions before it."""
     *sections, name = key.split(".")
-    model: Any = type(run)
-    value: Any = run.model_dump(mode="json")
+    model: Any = RunConfig
+    value: Any = new
     for section in sections:
         if section not in old:
             return False

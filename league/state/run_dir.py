@@ -113,9 +113,9 @@ def check_config_unchanged(run_dir: Path, run: RunConfig, store: LeagueStore) ->
     recorded = store.get_meta(CONFIG_HASH_META)
     if recorded is None or recorded == config_hash(run):  # runs made before the hash was kept are not checked
         return
-    old = store.get_meta(CONFIG_META) or {}
-    differing = changed_keys(old, run.model_dump(mode="json"))
-    keys = [key for key in differing if not added_at_its_default(old, key, run)]
+    old, new = store.get_meta(CONFIG_META) or {}, run.model_dump(mode="json")
+    differing = changed_keys(old, new)
+    keys = [key for key in differing if not added_at_its_default(old, new, key)]
     if differing and not keys:
         return
     raise RunDirError(
