@@ -2,7 +2,10 @@
 
 One thin line per run (seed), their mean, and the scripted and untrained reference lines,
 in ``OUT/curves.png``, with the last points in ``OUT/curves.md`` (``league.studies.curves``).
-The curves are measured while a run trains (``league.evaluation.learning_curves``).
+The curves are measured while a run trains (``league.evaluation.learning_curves``). Each
+run's progress over generations (its snapshots, exploiters' included, against the scripted
+players of the other side, from each pair's newest evaluation) is drawn a row per run in
+``OUT/generations.png``, with each lineage's first and last snapshot in ``OUT/curves.md``.
 """
 
 from __future__ import annotations
@@ -15,7 +18,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = command_parser(
         prog="python -m league.curves",
         description="Learning curves of several runs of one config (seeds): one line per run, their mean, "
-        "and the scripted and untrained reference lines; writes OUT/curves.png and OUT/curves.md.",
+        "and the scripted and untrained reference lines, and each run's progress over generations; "
+        "writes OUT/curves.png, OUT/generations.png and OUT/curves.md.",
     )
     parser.add_argument("--run-dirs", type=Path, nargs="+", required=True)
     parser.add_argument("--out", type=Path, required=True)

@@ -1,5 +1,6 @@
 """Progress over generations: every snapshot of each side against a fixed panel, the scripted
-players of the other side.
+players of the other side. A learner's snapshots (``attacker-m2-v3``) and an exploiter's
+(``team-exploiter-v1``) form separate lineages (``attacker-m2``, ``team-exploiter``).
 
 A league that improves shows each lineage's win rate rising with the snapshot version
 against the whole panel; one that cycles shows it rising against some panel members and
@@ -15,15 +16,16 @@ from dataclasses import dataclass, replace
 
 from league.analysis.statistics import wilson_interval
 from league.core.payoff import record_against
-from league.core.players import Player
+from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player
 
 SIDES = ("attacker", "team")
+TRAINED_KIND = {frozen: trained for trained, frozen in SNAPSHOT_KIND.items()}  # exploiter_snapshot -> exploiter
 PANEL_TITLES = {"attacker": "attacker snapshots vs the scripted teams", "team": "team snapshots vs the scripted attackers"}
 
 
 @dataclass(frozen=True)
 class GenerationLine:
-    """One lineage's snapshots (``attacker-m2``, ``team``) against one scripted opponent, by version."""
+    """One lineage's snapshots (``attacker-m2``, ``team-exploiter``) against one scripted opponent, by version."""
 
     side: str
     lineage: str
@@ -31,6 +33,7 @@ class GenerationLine:
     versions: list[int]
     wins: list[int]  # the snapshot's wins
     games: list[int]
+    kind: str  # the snapshots' kind: a learner's (snapshot) or an exploiter's (exploiter_snapshot)
 
     @property
     def label(self) -> str:
@@ -52,17 +55,22 @@ class GenerationLine:
         return below, above
 
 
+def lineage(snapshot: Player) -> str:
+    """The name of the learner or exploiter a snapshot was frozen from (``attacker-m2``, ``team-exploiter``)."""
+    return replace(snapshot, kind=TRAINED_KIND[snapshot.kind]).name
+
+
 def generation_lines(
     players: list[Player], payoff: dict[tuple[int, int], tuple[int, int]]
 ) -> tuple[list[GenerationLine], list[str]]:
     """The lines of both sides from ``{(attacker id, team id): (attacker wins, games)}``, and the missing points."""
     lines, missing = [], []
     for side in SIDES:
-        snapshots = [p for p in players if p.side == side and p.kind == "snapshot"]
+        snapshots = [p for p in players if p.side == side and p.kind in POOL_KINDS]
         panel = [p for p in players if p.side != side and p.kind == "scripted"]
-        lineages = sorted({replace(s, kind="learner").name for s in snapshots})
-        for lineage in lineages:
-            members = sorted((s for s in snapshots if replace(s, kind="learner").name == lineage), key=lambda s: s.version)
+        lineages = sorted({(s.kind, lineage(s)) for s in snapshots}, key=lambda k: (POOL_KINDS.index(k[0]), k[1]))
+        for kind, name in lineages:  # the learners' lineages first
+            members = sorted((s for s in snapshots if lineage(s) == name), key=lambda s: s.version)
             for opponent in panel:
                 versions, wins, games = [], [], []
                 for snapshot in members:
@@ -73,5 +81,5 @@ def generation_lines(
                     versions.append(snapshot.version)
                     wins.append(won)
                     games.append(n)
-                lines.append(GenerationLine(side, lineage, opponent.name, versions, wins, games))
+                lines.append(GenerationLine(side, name, opponent.name, versions, wins, games, kind))
     return lines, missing

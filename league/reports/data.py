@@ -154,6 +154,11 @@ def gather(store: LeagueStore, run: RunConfig, trajectories: Trajectories | None
     )
 
 
+def run_generations(store: LeagueStore) -> tuple[list[GenerationLine], list[str]]:
+    """A run's progress over generations (``gather``'s), and the points not evaluated."""
+    return generation_lines(store.players(), aggregate(store.newest_evaluation_rows()))
+
+
 # ---------------------------------------------------------------- tables
 def table_one_rows(data: ReportData) -> list[list[str]]:
     """The newest attacker snapshot of each reward method against the paper's scripted team."""
@@ -191,9 +196,9 @@ def rating_rows(data: ReportData) -> list[list[str]]:
             for p in by_rating]
 
 
-GENERATIONS_NOTE = ("Every snapshot of each side against the scripted players of the other side, by snapshot version: "
-                    "rising lines, the league improves; lines that rise against some opponents and fall against "
-                    "others, or go up and down, it cycles.")
+GENERATIONS_NOTE = ("Every snapshot of each side against the scripted players of the other side, by snapshot version "
+                    "(an exploiter's snapshots are a lineage of their own, dashed): rising lines, the league improves; "
+                    "lines that rise against some opponents and fall against others, or go up and down, it cycles.")
 NO_EXPLOITABILITY = "No best responses yet: python -m league.exploit --run-dir DIR --player NAME trains them."
 
 

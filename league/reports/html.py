@@ -38,7 +38,7 @@ from league.reports.data import (
     rating_rows,
     table_one_rows,
 )
-from league.reports.plots import SIDE_COLOURS, quantities, reference_colour
+from league.reports.plots import GENERATIONS_TITLE, SIDE_COLOURS, quantities, reference_colour
 
 if TYPE_CHECKING:
     from envs.config import GameConfig
@@ -225,13 +225,14 @@ def generations_figure(lines: list[GenerationLine]) -> go.Figure:
             below, above = line.error_bars()
             fig.add_trace(go.Scatter(
                 x=line.versions, y=line.rates, name=line.label, mode="lines+markers",
+                line=dict(dash="solid" if line.kind == "snapshot" else "dash"),
                 error_y=dict(type="data", symmetric=False, array=above, arrayminus=below),
                 customdata=list(zip(line.wins, line.games)),
                 hovertemplate="version %{x}: %{y:.3f} (%{customdata[0]} of %{customdata[1]} games)",
             ), row=1, col=column)
         fig.update_xaxes(title_text="snapshot version", dtick=1, row=1, col=column)
     fig.update_yaxes(title_text="win rate of the snapshot", range=[-0.03, 1.03], row=1, col=1)
-    fig.update_layout(title="progress over generations (newest evaluation of each pair, 95% Wilson intervals)", height=460)
+    fig.update_layout(title=GENERATIONS_TITLE, height=460)
     return fig
 
 

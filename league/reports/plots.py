@@ -126,25 +126,43 @@ def ratings_figure(data: ReportData):
 
 
 # ---------------------------------------------------------------- generations
+GENERATIONS_TITLE = "progress over generations (newest evaluation of each pair, 95% Wilson intervals)"
+
+
+def generations_axis(ax, lines: list[GenerationLine], side: str, title: str) -> None:
+    """One side's lines on one panel: learners' lineages solid, exploiters' dashed (their colours in the same order)."""
+    shown = [line for line in lines if line.side == side]
+    colours = plt.get_cmap("tab10")
+    for kind in POOL_KINDS:
+        for k, line in enumerate(line for line in shown if line.kind == kind):
+            ax.errorbar(line.versions, line.rates, yerr=list(line.error_bars()), label=line.label,
+                        marker="o" if kind == "snapshot" else "s", ms=3.5, lw=1.2, capsize=2.5, color=colours(k % 10),
+                        ls="-" if kind == "snapshot" else "--")
+    if shown:
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False)
+    else:
+        ax.text(0.5, 0.5, f"no {side} snapshot or no scripted opponent", ha="center", va="center", transform=ax.transAxes)
+    ax.set_title(title)
+    ax.set_xlabel("snapshot version")
+    ax.set_ylim(-0.03, 1.03)
+    ax.xaxis.get_major_locator().set_params(integer=True)
+
+
 def generations_plot(lines: list[GenerationLine], out: Path, dpi: int = 110) -> None:
     """One panel per side: win rate of each snapshot (95% Wilson interval) against each scripted opponent."""
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
-    colours = plt.get_cmap("tab10")
-    for ax, side in zip(axes, SIDES):
-        shown = [line for line in lines if line.side == side]
-        for k, line in enumerate(shown):
-            ax.errorbar(line.versions, line.rates, yerr=list(line.error_bars()), label=line.label, marker="o", ms=3.5, lw=1.2,
-                        capsize=2.5, color=colours(k % 10))
-        if shown:
-            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False)
-        else:
-            ax.text(0.5, 0.5, f"no {side} snapshot or no scripted opponent", ha="center", va="center", transform=ax.transAxes)
-        ax.set_title(PANEL_TITLES[side])
-        ax.set_xlabel("snapshot version")
-        ax.set_ylim(-0.03, 1.03)
-        ax.xaxis.get_major_locator().set_params(integer=True)
-    axes[0].set_ylabel("win rate of the snapshot")
-    fig.suptitle("progress over generations (newest evaluation of each pair, 95% Wilson intervals)")
+    runs_generations_plot([("", lines)], out, dpi)
+
+
+def runs_generations_plot(runs: list[tuple[str, list[GenerationLine]]], out: Path, dpi: int = 110) -> None:
+    """``generations_plot`` of several runs (seeds of one config): a row of both sides' panels per run."""
+    entries = max((sum(line.side == side for line in lines) for _, lines in runs for side in SIDES), default=0)
+    height = 4.8 + 0.12 * max(0, entries - 3)  # a row's height: room for its legends, one entry per line
+    fig, axes = plt.subplots(len(runs), 2, figsize=(12, height * len(runs)), sharey=True, squeeze=False)
+    for row, (name, lines) in zip(axes, runs):
+        for ax, side in zip(row, SIDES):
+            generations_axis(ax, lines, side, f"{name}: {PANEL_TITLES[side]}" if name else PANEL_TITLES[side])
+        row[0].set_ylabel("win rate of the snapshot")
+    fig.suptitle(GENERATIONS_TITLE)
     fig.tight_layout()
     fig.savefig(out, dpi=dpi)
     plt.close(fig)

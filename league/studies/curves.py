@@ -1,4 +1,6 @@
-"""Learning curves of several runs of one config (seeds): their plot and a summary table
+"""Learning curves of several runs of one config (seeds): their plot and a summary table, and
+each run's progress over generations (its snapshots, exploiters' included, against the
+scripted panel: ``league.analysis.generations``) with each lineage's first and last snapshot
 (``python -m league.curves --run-dirs A B C --out DIR``; ``league.reproduce`` per method)."""
 
 from __future__ import annotations
@@ -8,8 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
+from league.analysis.generations import GenerationLine
 from league.evaluation.learning_curves import Curve, GameStats, read_curves
-from league.reports.plots import plot_curves, quantities
+from league.reports.data import run_generations
+from league.reports.plots import plot_curves, quantities, runs_generations_plot
 from league.state.run_dir import open_run
 
 
@@ -40,14 +44,41 @@ def summary_table(groups: list[list[Curve]], run_names: list[str], terminal_rewa
     return "\n".join(lines)
 
 
+def snapshot_cells(line: GenerationLine, k: int) -> str:
+    """The ``k``-th evaluated snapshot of a line: version, win rate and its Wilson interval."""
+    low, high = line.intervals[k]
+    return f"v{line.versions[k]} | {line.rates[k]:.3f} | [{low:.3f}, {high:.3f}]"
+
+
+def progress_table(generations: list[tuple[list[GenerationLine], list[str]]], run_names: list[str]) -> str:
+    """Markdown: per run (its lines and missing points), each lineage's first and last evaluated
+    snapshot against each scripted opponent (the snapshot's win rate), and the points not evaluated."""
+    lines = ["## Progress over generations", "",
+             "Each run's snapshots against the scripted players of the other side (`generations.png`, one row "
+             "per run, exploiters dashed): the snapshot's win rate, newest evaluation of each pair.", ""]
+    for name, (run_lines, missing) in zip(run_names, generations):
+        lines += [f"### {name}", "",
+                  "| lineage | opponent | first | win rate | 95% interval | last | win rate | 95% interval |",
+                  "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+        for line in run_lines:
+            points = (f"{snapshot_cells(line, 0)} | {snapshot_cells(line, -1)}" if line.versions
+                      else "not evaluated | | | | |")
+            lines.append(f"| {line.lineage} | {line.opponent} | {points} |")
+        lines += ["", *(f"* {text}" for text in missing), ""] if missing else [""]
+    return "\n".join(lines)
+
+
 def study(run_dirs: list[Path], out: Path) -> tuple[Path, Path]:
-    """Curves of several runs of one config: ``OUT/curves.png`` and ``OUT/curves.md``."""
+    """Curves of several runs of one config: ``OUT/curves.png`` and ``OUT/curves.md``, and their
+    progress over generations, a row per run, in ``OUT/generations.png``."""
     per_run: list[dict[tuple[str, str], Curve]] = []
+    generations = []
     configs = []
     for run_dir in run_dirs:
         run, store = open_run(run_dir)
         try:
             per_run.append({(c.learner.name, c.opponent.name): c for c in read_curves(store)})
+            generations.append(run_generations(store))
         finally:
             store.close()
         configs.append(run)
@@ -62,7 +93,9 @@ def study(run_dirs: list[Path], out: Path) -> tuple[Path, Path]:
     (reward,) = terminal
     names = [Path(d).name for d in run_dirs]
     plot_curves(groups, reward, f"{configs[0].name}: {len(run_dirs)} runs", out / "curves.png")
+    runs_generations_plot([(name, lines) for name, (lines, _) in zip(names, generations)], out / "generations.png")
     text = f"# Learning curves of {len(run_dirs)} runs\n\nRuns: {', '.join(map(str, run_dirs))}. " \
-           f"Last point of each run; references are means over the runs.\n\n" + summary_table(groups, names, reward)
+           f"Last point of each run; references are means over the runs.\n\n" + summary_table(groups, names, reward) \
+           + "\n" + progress_table(generations, names)
     (out / "curves.md").write_text(text)
     return out / "curves.png", out / "curves.md"

@@ -1,5 +1,6 @@
-"""The report's progress over generations, meta-game and Nash-averaged ratings."""
+"""Progress over generations (the report's, and several runs' in league.curves), meta-game and Nash-averaged ratings."""
 
+import shutil
 import sqlite3
 
 import pytest
@@ -13,6 +14,7 @@ from league.core.players import Player
 from league.report import build_report
 from league.reports.data import gather
 from league.state.store import LeagueStore
+from league.studies.curves import study
 
 A0 = Player(1, "attacker", "snapshot", 0, 2)
 A1 = Player(2, "attacker", "snapshot", 1, 2)
@@ -21,6 +23,8 @@ T0 = Player(4, "team", "snapshot", 0)
 PURSUIT = Player(5, "attacker", "scripted", 0, scripted_attacker="pure_pursuit")
 AVOID = Player(6, "team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit")
 STRAIGHT = Player(7, "team", "scripted", 0, scripted_targeter="straight", scripted_defender="pure_pursuit")
+TX1 = Player(8, "team", "exploiter_snapshot", 1)
+AX1 = Player(9, "attacker", "exploiter_snapshot", 1, 2)
 
 
 def test_each_lineage_against_each_scripted_opponent_by_version():
@@ -39,6 +43,23 @@ def test_each_lineage_against_each_scripted_opponent_by_version():
     assert (team.side, team.versions, team.rates) == ("team", [0], [0.7])  # the team's own win rate
     assert by_label["attacker-m3 vs scripted-straight+pure_pursuit"].versions == []
     assert missing == ["attacker-m3-v1 vs scripted-straight+pure_pursuit not evaluated"]
+
+
+def test_an_exploiters_snapshots_are_a_lineage_of_their_own():
+    payoff = {(PURSUIT.id, T0.id): (3, 10), (PURSUIT.id, TX1.id): (1, 10), (AX1.id, AVOID.id): (6, 10)}
+    lines, missing = generation_lines([TX1, T0, AX1, A0, PURSUIT, AVOID, STRAIGHT], payoff)
+    by_label = {line.label: line for line in lines}
+    assert [line.label for line in lines if line.side == "team"] == [
+        "team vs scripted-pure_pursuit", "team-exploiter vs scripted-pure_pursuit"  # the learner's lineage first
+    ]
+    exploiter = by_label["team-exploiter vs scripted-pure_pursuit"]
+    assert (exploiter.kind, exploiter.versions, exploiter.rates) == ("exploiter_snapshot", [1], [0.9])
+    assert by_label["team vs scripted-pure_pursuit"].versions == [0]  # the exploiter's points are not the learner's
+    assert by_label["attacker-m2-exploiter vs scripted-avoid_attacker+pure_pursuit"].rates == [0.6]
+    assert by_label["attacker-m2 vs scripted-avoid_attacker+pure_pursuit"].kind == "snapshot"
+    assert "attacker-m2-exploiter-v1 vs scripted-straight+pure_pursuit not evaluated" in missing
+    dashes = {trace.name: trace.line.dash for trace in generations_figure(lines).data}
+    assert dashes["team-exploiter vs scripted-pure_pursuit"] == "dash" and dashes["team vs scripted-pure_pursuit"] == "solid"
 
 
 def test_plots_draw_rates_of_0_and_1(tmp_path):
@@ -88,3 +109,37 @@ def test_report_plays_a_missing_pair_and_draws_the_generations(run_copy):
     page = (run_copy / "report" / "index.html").read_text()
     assert "id='generations'" in page or 'id="generations"' in page
     assert "Nash-averaged rating" in page
+
+
+def test_a_study_of_several_runs_draws_each_runs_generations(tiny_run, tmp_path):
+    seeds = [tmp_path / "seed0", tmp_path / "seed1"]  # the same run twice stands for two seeds of one config
+    for seed in seeds:
+        shutil.copytree(tiny_run, seed)
+    store = LeagueStore(seeds[1])
+    names = {p.name: p for p in store.players()}
+    store.close()
+    snapshot, scripted = names["attacker-m2-v1"], names["scripted-avoid_attacker+pure_pursuit"]
+    with sqlite3.connect(seeds[1] / "league.db") as db:  # seed1 misses one point
+        db.execute("DELETE FROM matches WHERE source = 'evaluation' AND attacker = ? AND team = ?", (snapshot.id, scripted.id))
+
+    study(seeds, tmp_path / "study")
+    one_run = tmp_path / "one.png"
+    store = LeagueStore(seeds[0])
+    try:
+        generations_plot(gather(store, saved_run_config(seeds[0])).generations, one_run)
+    finally:
+        store.close()
+    width, height = Image.open(tmp_path / "study" / "generations.png").size
+    assert (width, height) == (Image.open(one_run).size[0], 2 * Image.open(one_run).size[1])  # a row per run
+    text = (tmp_path / "study" / "curves.md").read_text()
+    progress = text[text.index("## Progress over generations"):]
+    seed0, seed1 = progress.split("### seed1")
+    assert "### seed0" in seed0
+    first_and_last = "| attacker-m2 | scripted-avoid_attacker+pure_pursuit | v0 | "
+    row = next(line for line in seed0.splitlines() if line.startswith(first_and_last))
+    assert "| v1 | " in row and row.count("[") == 2  # the first and the last snapshot, each with its interval
+    assert "| team | scripted-lead_intercept | v0 | " in seed0
+    assert "attacker-m2-v1 vs scripted-avoid_attacker+pure_pursuit not evaluated" in seed1
+    assert "not evaluated" not in seed0
+    row = next(line for line in seed1.splitlines() if line.startswith(first_and_last))
+    assert "| v1 | " not in row  # its last evaluated snapshot is v0
