@@ -62,7 +62,8 @@ class PPOSettings(Strict):
     Without it T never found the terminal sphere (radius ``v_T``, one step of T) by exploring,
     and trained teams won only by D's interceptions (docs/results/learning.md, "The team's learning"). At
     ``k = 3`` the flagship's teams still did not fly to the terminal against an attacker that
-    flies off; at ``k = 30`` the smoke league's did, in 183 to 194 of 200 games (docs/results/flagship.md).
+    flies off; at ``k = 30`` the smoke league's did, in 183 to 194 of 200 games, while the
+    flagship's team got worse against every attacker (docs/results/flagship.md).
     Returns in curves, evaluations and metrics stay unshaped. Needs ``resources.sampler: fast``."""
     defender_shaping: float = Field(0.0, ge=0)
     """``k``: in training, D's rewards get the potential-based shaping ``gamma Phi(s') - Phi(s)``
