@@ -109,6 +109,12 @@ class PPOSettings(Strict):
     """Hidden layer sizes of the team's policy and value networks; ``None``: ``hidden``. Against
     one frozen attacker, ``[256, 256]`` made the team beat the best scripted team where
     ``[64, 64]`` did not, at 4 to 5 times the training cost (docs/results/learning.md)."""
+    attacker_prior: Literal["none", "lead_intercept"] = "none"
+    """``lead_intercept``: the attacker's policy mean is lead intercept's turn
+    (``envs.scripted``, computed from the attacker's own observation) plus what its network
+    outputs, so the untrained attacker plays lead intercept and training learns the
+    correction (residual policy learning). ``none``: the network's output alone, as in the
+    paper. Needs ``game.observation: rich`` and ``game.action_mode: relative``."""
     bf16: bool = False
     """Compute the networks' forward and backward passes in the learner's update under
     ``torch.autocast`` to bfloat16 where the CPU multiplies bfloat16 natively (AMX or AVX-512
@@ -321,6 +327,8 @@ class RunConfig(Strict):
         schedule = self.ppo.lr_schedule
         if schedule is not None and (schedule[0][0] != 0 or any(a[0] >= b[0] for a, b in zip(schedule, schedule[1:]))):
             raise ValueError("ppo.lr_schedule must start at 0 env steps and list increasing env steps")
+        if self.ppo.attacker_prior != "none" and (self.game.observation, self.game.action_mode) != ("rich", "relative"):
+            raise ValueError("ppo.attacker_prior needs game.observation: rich and game.action_mode: relative")
         if self.ppo.minibatch_size > self.ppo.train_batch_size:
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
         if self.ppo.minibatch_counts != "rows" and self.resources.sampler != "fast":

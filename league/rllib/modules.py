@@ -9,6 +9,8 @@ Every agent's observation arrives with the env's 22-number global state appended
   attacker's). The role matters: T and D are paid differently (Eq. 10 vs 11), so at one
   global state their values differ, and a critic blind to the role can only learn their
   average, which biases both agents' advantages.
+  With ``prior: lead_intercept`` (``PPOSettings.attacker_prior``) the actor is a
+  ``ResidualActor``: lead intercept's turn plus the network's output.
 * ``ScriptedModule``: a scripted player of ``envs.scripted``, reading the global state;
   it returns actions directly and is never trained.
 """
@@ -63,8 +65,53 @@ def mlp(inputs: int, hidden: list[int], outputs: int, last_gain: float) -> nn.Se
     return nn.Sequential(*layers, head)
 
 
+class LeadInterceptTurn(nn.Module):
+    """Lead intercept's action (``envs.scripted``: fly at the point where T, at its current
+    velocity, is met; turn toward it as far as the limits allow) from the attacker's ``rich``
+    observation alone: T's position relative to A and T's heading, both in A's yaw frame, and
+    A's pitch. In that frame A's yaw is 0, so the yaw to turn is the aim's azimuth."""
+
+    def __init__(self, game: GameConfig):
+        super().__init__()
+        # Lengths in the observation are divided by position_scale; so are the speeds here.
+        self.v_attacker = game.v_attacker / game.position_scale
+        self.v_targeter = game.v_targeter / game.position_scale
+        self.max_yaw_change = game.max_yaw_change
+        self.max_pitch_change = game.max_pitch_change
+
+    def forward(self, own: torch.Tensor) -> torch.Tensor:
+        own = own.float()
+        pitch = torch.atan2(own[..., 0], own[..., 1])
+        r = own[..., 2:5]  # T - A
+        u = own[..., 6:9] * self.v_targeter  # T's velocity
+        # envs.geometry.intercept_time: the positive root of |r + u t| = v_A t.
+        ru = (r * u).sum(-1)
+        margin = self.v_attacker**2 - (u * u).sum(-1)
+        t = (ru + torch.sqrt(ru * ru + margin * (r * r).sum(-1))) / margin
+        aim = r + u * t.unsqueeze(-1)
+        yaw_turn = torch.atan2(aim[..., 1], aim[..., 0])
+        pitch_turn = torch.atan2(aim[..., 2], torch.sqrt(aim[..., 0] ** 2 + aim[..., 1] ** 2)) - pitch
+        turn = torch.stack((yaw_turn / self.max_yaw_change, pitch_turn / self.max_pitch_change), dim=-1)
+        return turn.clamp(-1.0, 1.0)
+
+
+class ResidualActor(nn.Module):
+    """A scripted player's action plus a network's: the network learns the correction."""
+
+    def __init__(self, prior: nn.Module, net: nn.Module):
+        super().__init__()
+        self.prior, self.net = prior, net
+
+    def forward(self, own: torch.Tensor) -> torch.Tensor:
+        return self.prior(own) + self.net(own)
+
+
+PRIORS = {"lead_intercept": LeadInterceptTurn}
+
+
 class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
-    """PPO actor-critic; ``model_config``: ``actor_inputs``, ``critic`` ("global"|"local"), ``hidden``."""
+    """PPO actor-critic; ``model_config``: ``actor_inputs``, ``critic`` ("global"|"local"), ``hidden``,
+    and optionally ``prior`` (a name of ``PRIORS`` or "none") with ``game`` (GameConfig fields)."""
 
     def setup(self) -> None:
         cfg = self.model_config
@@ -75,6 +122,9 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         actions = self.action_space.shape[0]
         hidden = list(cfg["hidden"])
         self.pi = mlp(self.actor_inputs, hidden, actions, last_gain=0.01)
+        prior = cfg.get("prior", "none")
+        if prior != "none":
+            self.pi = ResidualActor(PRIORS[prior](GameConfig(**cfg["game"])), self.pi)
         self.log_std = nn.Parameter(torch.full((actions,), INITIAL_LOG_STD))
         self.vf = mlp(critic_inputs, hidden, 1, last_gain=1.0)
 

@@ -50,6 +50,8 @@ def write(tmp_path, text):
         ("name: x\nppo: {team_reward: mine}\n", "ppo.team_reward"),
         ("name: x\nleague: {frozen_players_explore: false}\nresources: {sampler: standard}\n", "frozen_players_explore"),
         ("name: x\nppo: {lr_schedule: [[100, 0.001]]}\n", "lr_schedule"),
+        ("name: x\nppo: {attacker_prior: lead_intercept}\ngame: {observation: paper}\n", "attacker_prior"),
+        ("name: x\nppo: {attacker_prior: pure_pursuit}\n", "ppo.attacker_prior"),
         ("name: x\nppo: {lr_schedule: [[0, 0.001], [0, 0.0001]]}\n", "lr_schedule"),
     ],
 )

@@ -1,0 +1,37 @@
+"""The attacker's lead-intercept prior (``ppo.attacker_prior``): with a network that outputs
+nothing, the policy's mean is exactly the scripted lead intercept's action."""
+
+import numpy as np
+import torch
+
+from envs.agents import ATTACKER
+from envs.core import BatchedGame
+from envs.observations import global_state, observe, policy_input
+from envs.scripted import ScriptedPlayer
+from league.config import load_config
+from league.rllib.bridge import learner_spec
+
+
+def test_an_attacker_with_the_prior_and_a_silent_network_plays_lead_intercept():
+    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept"])
+    module = learner_spec(run, "attacker", reward_method=2).build()
+    head = module.pi.net[-1]
+    torch.nn.init.zeros_(head.weight)
+    torch.nn.init.zeros_(head.bias)
+
+    rng = np.random.default_rng(0)
+    game = BatchedGame(run.game, 4096)
+    game.reset(rng)
+    # Turned anywhere, not only as the games start: yaw all round, pitch within its limits.
+    game.headings[:] = np.stack((rng.uniform(0, 2 * np.pi, (4096, 3)), rng.uniform(-1.2, 1.2, (4096, 3))), axis=-1)
+    time_left = np.ones(4096)
+    obs = policy_input(observe(run.game, game.positions, game.headings, time_left, agents=[ATTACKER])[0],
+                       global_state(run.game, game.positions, game.headings, time_left))
+    expected = ScriptedPlayer("attacker", "lead_intercept").act(game)
+    with torch.no_grad():
+        actual = module.deterministic_action(torch.from_numpy(obs)).numpy()
+
+    # The observation is float32: positions of order 10 carry ~1e-6 rounding, and the turn
+    # divides angles by limits of order 1, so 1e-4 is ample (the largest difference is ~2e-6).
+    np.testing.assert_allclose(actual, expected, atol=1e-4)
+    assert (np.abs(expected) < 1).mean() > 0.4 and np.abs(expected).max() == 1.0  # turns both within and at the limits
