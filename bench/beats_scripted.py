@@ -9,7 +9,8 @@ over seeds with a 95% bootstrap interval over the seeds:
   beside the best scripted attacker against that team;
 * the final team (the newest team snapshot) against each scripted attacker and the final
   attackers, beside the best scripted team against that attacker (the lowest attacker win rate);
-* the Nash weight of the trained players on each side of the run's final meta-game;
+* the Nash weight of the trained players (snapshots from version 1 on) on each side of the run's
+  final meta-game;
 * with ``--untrained``, also the final team against its untrained version (``team-v0``)
   against every attacker of the league, and each final attacker against its own version 0
   against every team.
@@ -102,7 +103,8 @@ def measure(run_dir: Path, untrained: bool = False) -> list[dict]:
     if meta is None:
         raise SystemExit(f"{run_dir}: no meta-game ({why_not})")
     for side, chosen, weights in (("attacker", meta.attackers, meta.equilibrium.row_mixture), ("team", meta.teams, meta.equilibrium.column_mixture)):
-        trained = sum(w for p, w in zip(chosen, weights) if p.kind in TRAINED)
+        # Version 0 is a learner before training (with ``ppo.attacker_prior`` it plays lead intercept).
+        trained = sum(w for p, w in zip(chosen, weights) if p.kind in TRAINED and p.version > 0)
         rows.append(dict(player=f"trained {side}s", against="Nash weight", rate=(trained, trained, trained),
                          best="", best_rate=None, better=trained > 0, worse=trained == 0))
     return rows

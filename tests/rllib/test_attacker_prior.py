@@ -2,6 +2,8 @@
 nothing, the policy's mean is exactly the scripted lead intercept's action."""
 
 import numpy as np
+import onnxruntime
+import pytest
 import torch
 
 from envs.agents import ATTACKER
@@ -9,12 +11,17 @@ from envs.core import BatchedGame
 from envs.observations import global_state, observe, policy_input
 from envs.scripted import ScriptedPlayer
 from league.config import load_config
+from league.evaluation.export import ExportedPolicy, export
 from league.rllib.bridge import learner_spec
+
+
+def attacker_with_prior(run):
+    return learner_spec(run, "attacker", reward_method=2).build()
 
 
 def test_an_attacker_with_the_prior_and_a_silent_network_plays_lead_intercept():
     run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept"])
-    module = learner_spec(run, "attacker", reward_method=2).build()
+    module = attacker_with_prior(run)
     head = module.pi.net[-1]
     torch.nn.init.zeros_(head.weight)
     torch.nn.init.zeros_(head.bias)
@@ -35,3 +42,24 @@ def test_an_attacker_with_the_prior_and_a_silent_network_plays_lead_intercept():
     # divides angles by limits of order 1, so 1e-4 is ample (the largest difference is ~2e-6).
     np.testing.assert_allclose(actual, expected, atol=1e-4)
     assert (np.abs(expected) < 1).mean() > 0.4 and np.abs(expected).max() == 1.0  # turns both within and at the limits
+
+
+@pytest.mark.parametrize("fmt", ["export", "torchscript", "onnx"])
+def test_the_prior_travels_in_every_export_format(tmp_path, fmt):
+    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept"])
+    module = attacker_with_prior(run)
+    rng = np.random.default_rng(1)
+    game = BatchedGame(run.game, 256)
+    game.reset(rng)
+    obs = observe(run.game, game.positions, game.headings, np.ones(256), agents=[ATTACKER])[0]
+    out = tmp_path / f"attacker.{fmt}"
+    export(ExportedPolicy(module.pi, module.actor_inputs).eval(), {"observation": {"size": obs.shape[1]}}, fmt, out)
+    if fmt == "onnx":
+        actions = onnxruntime.InferenceSession(str(out)).run(None, {"observation": obs})[0]
+    else:
+        policy = torch.export.load(out).module() if fmt == "export" else torch.jit.load(out)
+        actions = policy(torch.from_numpy(obs)).detach().numpy()
+    with torch.no_grad():
+        expected = module.pi(torch.from_numpy(obs)).numpy()
+    # float32 actions of size ~1: another kernel or order changes only the last of ~7 digits.
+    np.testing.assert_allclose(actions, expected, atol=1e-5)
