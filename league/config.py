@@ -236,6 +236,11 @@ class LeagueSettings(Strict):
     ``phase_env_steps``); an attacker phase's budget is shared by its attackers, the team's is its own."""
     pfsp: Literal["squared", "variance", "uniform"] = "squared"
     """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat."""
+    scripted_share: dict[Side, Annotated[float, Field(ge=0, le=1)]] = Field(default_factory=dict)
+    """Per side, the share of its learners' games held for the other side's scripted players,
+    spread evenly over them; PFSP draws the rest over the whole pool, scripted players
+    included. ``{attacker: 0.5}``: the attackers meet the scripted teams in at least half
+    their games however well they already do against them. Empty: PFSP alone."""
     attacker_reward_methods: list[Literal[1, 2, 3]] | None = None
     """Train one attacker per listed reward method side by side; default: ``game.attacker_reward`` only."""
     exploiters: list[Side] = Field(default_factory=list)

@@ -3,7 +3,8 @@
 ``x`` is the learner's win rate against a candidate. AlphaStar's ``squared`` weighting
 ``(1 - x)^2`` favours opponents the learner still loses to; ``variance`` ``x (1 - x)``
 favours even matches; ``uniform`` ignores ``x``. If every weight is zero the choice
-falls back to uniform, so the learner always has someone to play.
+falls back to uniform, so the learner always has someone to play. ``with_scripted_share``
+holds a fixed share of the games for the scripted players (``league.scripted_share``).
 """
 
 from __future__ import annotations
@@ -27,3 +28,12 @@ def pfsp_probabilities(win_rates: np.ndarray | list[float], weighting: str = "sq
     if total <= 0:
         return np.full(x.shape, 1.0 / x.size)
     return weights / total
+
+
+def with_scripted_share(probabilities: np.ndarray, scripted: list[bool], share: float) -> np.ndarray:
+    """``probabilities`` with ``share`` of the mass moved onto the ``scripted`` candidates, evenly:
+    ``(1 - share) p + share u``, ``u`` uniform over them. Unchanged where none is scripted."""
+    mask = np.asarray(scripted, dtype=bool)
+    if share == 0 or not mask.any():
+        return probabilities
+    return (1.0 - share) * probabilities + share * mask / mask.sum()

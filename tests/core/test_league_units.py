@@ -9,7 +9,7 @@ from league.analysis.statistics import wilson_interval
 from envs.agents import Outcome
 from league.core.payoff import ATTACKER_WINS, OutcomeCount, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
 from league.core.players import Player
-from league.core.pfsp import pfsp_probabilities
+from league.core.pfsp import pfsp_probabilities, with_scripted_share
 from league.core.match_plan import MatchPlan
 from league.rllib.bridge import learner_spec
 from league.run import main as run_main
@@ -102,6 +102,15 @@ def test_resume_of_a_non_run_exits_2(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- PFSP and match plans
+def test_a_scripted_share_moves_that_much_of_the_mass_evenly_onto_the_scripted_players():
+    p = pfsp_probabilities([0.9, 0.5, 0.1], "squared")  # the first two scripted
+    shared = with_scripted_share(p, [True, True, False], 0.5)
+    np.testing.assert_allclose(shared, 0.5 * p + [0.25, 0.25, 0.0])
+    assert abs(shared.sum() - 1) < 1e-12
+    np.testing.assert_array_equal(with_scripted_share(p, [False] * 3, 0.5), p)  # no scripted candidate: PFSP alone
+    np.testing.assert_array_equal(with_scripted_share(p, [True, True, False], 0.0), p)
+
+
 def test_pfsp_weightings():
     np.testing.assert_allclose(pfsp_probabilities([0.0, 0.5, 1.0], "squared"), [0.8, 0.2, 0.0])
     np.testing.assert_allclose(pfsp_probabilities([0.5, 0.9], "variance"), [0.25 / 0.34, 0.09 / 0.34])
