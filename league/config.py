@@ -238,9 +238,9 @@ class LeagueSettings(Strict):
     """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat."""
     scripted_share: dict[Side, Annotated[float, Field(ge=0, le=1)]] = Field(default_factory=dict)
     """Per side, the share of its learners' games held for the other side's scripted players,
-    spread evenly over them; PFSP draws the rest over the whole pool, scripted players
-    included. ``{attacker: 0.5}``: the attackers meet the scripted teams in at least half
-    their games however well they already do against them. Empty: PFSP alone."""
+    spread over them by the ``pfsp`` weighting; PFSP draws the rest over the whole pool,
+    scripted players included. ``{attacker: 0.5}``: the attackers meet the scripted teams in at
+    least half their games however many snapshots the pool holds. Empty: PFSP alone."""
     attacker_reward_methods: list[Literal[1, 2, 3]] | None = None
     """Train one attacker per listed reward method side by side; default: ``game.attacker_reward`` only."""
     exploiters: list[Side] = Field(default_factory=list)

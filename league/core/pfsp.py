@@ -30,10 +30,17 @@ def pfsp_probabilities(win_rates: np.ndarray | list[float], weighting: str = "sq
     return weights / total
 
 
-def with_scripted_share(probabilities: np.ndarray, scripted: list[bool], share: float) -> np.ndarray:
-    """``probabilities`` with ``share`` of the mass moved onto the ``scripted`` candidates, evenly:
-    ``(1 - share) p + share u``, ``u`` uniform over them. Unchanged where none is scripted."""
+
+def with_scripted_share(
+    win_rates: np.ndarray | list[float], scripted: list[bool], share: float, weighting: str = "squared"
+) -> np.ndarray:
+    """PFSP probabilities with ``share`` of the mass held for the ``scripted`` candidates and
+    spread over them by the same weighting: ``(1 - share) p + share q``, ``q`` PFSP over the
+    scripted ones alone. Plain PFSP where none is scripted."""
+    p = pfsp_probabilities(win_rates, weighting)
     mask = np.asarray(scripted, dtype=bool)
     if share == 0 or not mask.any():
-        return probabilities
-    return (1.0 - share) * probabilities + share * mask / mask.sum()
+        return p
+    q = np.zeros_like(p)
+    q[mask] = pfsp_probabilities(np.asarray(win_rates, dtype=np.float64)[mask], weighting)
+    return (1.0 - share) * p + share * q

@@ -39,7 +39,7 @@ from league.evaluation.results import record_evaluations
 from league.evaluation.tables import evaluation_markdown
 from league.core.payoff import OutcomeCount, aggregate, league_ratings, record_against, win_rate
 from league.core.match_plan import MatchPlan
-from league.core.pfsp import pfsp_probabilities, with_scripted_share
+from league.core.pfsp import with_scripted_share
 from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
 from league.training.progress import IterationTiming, ProgressReporter, TimeSplit
 from league.state.run_dir import fresh_directory, prune_checkpoints, record_config, write_checkpoint, write_replacing
@@ -189,9 +189,7 @@ class Coordinator:
         scripted = [o.kind == "scripted" for o in opponents]
         share = self.run.league.scripted_share.get(side, 0.0)
         probabilities = [
-            with_scripted_share(
-                pfsp_probabilities(self.learner_win_rates(learner, opponents), self.run.league.pfsp), scripted, share
-            )
+            with_scripted_share(self.learner_win_rates(learner, opponents), scripted, share, self.run.league.pfsp)
             for learner in learners
         ]
         exploiters = self.exploiters(side)

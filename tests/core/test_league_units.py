@@ -102,13 +102,14 @@ def test_resume_of_a_non_run_exits_2(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- PFSP and match plans
-def test_a_scripted_share_moves_that_much_of_the_mass_evenly_onto_the_scripted_players():
-    p = pfsp_probabilities([0.9, 0.5, 0.1], "squared")  # the first two scripted
-    shared = with_scripted_share(p, [True, True, False], 0.5)
-    np.testing.assert_allclose(shared, 0.5 * p + [0.25, 0.25, 0.0])
-    assert abs(shared.sum() - 1) < 1e-12
-    np.testing.assert_array_equal(with_scripted_share(p, [False] * 3, 0.5), p)  # no scripted candidate: PFSP alone
-    np.testing.assert_array_equal(with_scripted_share(p, [True, True, False], 0.0), p)
+def test_a_scripted_share_holds_that_much_of_the_mass_for_the_scripted_players_weighted_by_pfsp():
+    x = [0.9, 0.5, 0.1]  # the first two scripted
+    p = pfsp_probabilities(x, "squared")
+    shared = with_scripted_share(x, [True, True, False], 0.5, "squared")
+    np.testing.assert_allclose(shared, 0.5 * p + 0.5 * np.array([0.01, 0.25, 0.0]) / 0.26)
+    assert abs(shared.sum() - 1) < 1e-12  # float64 sums of three terms
+    np.testing.assert_array_equal(with_scripted_share(x, [False] * 3, 0.5, "squared"), p)  # none scripted: PFSP alone
+    np.testing.assert_array_equal(with_scripted_share(x, [True, True, False], 0.0, "squared"), p)
 
 
 def test_pfsp_weightings():
