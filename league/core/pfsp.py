@@ -30,7 +30,6 @@ def pfsp_probabilities(win_rates: np.ndarray | list[float], weighting: str = "sq
     return weights / total
 
 
-
 def with_scripted_share(
     win_rates: np.ndarray | list[float], scripted: list[bool], share: float, weighting: str = "squared"
 ) -> np.ndarray:
