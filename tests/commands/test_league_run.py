@@ -105,7 +105,9 @@ def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
                      r"\(\d+%\), final evaluation (\d+) s \(\d+%\), the rest (\d+) s \(\d+%\)\)", out)
     assert done, out[-2000:]
     total, *parts = (int(seconds) for seconds in done.groups())
-    assert parts[0] > 0 and abs(sum(parts) - total) <= 3  # five numbers, each rounded to the second
+    # Five numbers, each rounded to the second: a fast CPU trains this tiny run's iterations in
+    # under half a second, so no part is sure to be above 0.
+    assert abs(sum(parts) - total) <= 3
     assert "new API stack" not in out and "already in registry" not in out and "\x1b[" not in out  # no library banners
 
     status = subprocess.run(
