@@ -10,6 +10,7 @@ settings and env-step budget per side, then compares the final players of each s
 | ``league``         | PFSP over the other side's scripted players and snapshots  |
 | ``league-exploiters`` | as ``league``, with a main exploiter on each side (``league.exploiters``) |
 | ``league-variance`` | as ``league``, PFSP weighting ``variance``, x(1 - x), instead of ``squared`` |
+| ``league-psro``    | as ``league``, opponents by PSRO's rule (``pfsp: nash``): the Nash mixture of the frozen players' meta-game |
 
 Every arm: method-2 attacker reward with a terminal reward of +-``--terminal-reward`` (so
 both sides learn to win), ``--phases`` alternating phases of ``--phase-env-steps``
@@ -48,7 +49,8 @@ from league.core.players import Player, other_side
 from league.studies.runs import finished, train_run, train_runs_on_cluster
 from league.state.run_dir import open_run
 
-ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance")
+ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance", "league-psro")
+PFSP_OF_ARM = {"league-variance": "variance", "league-psro": "nash"}  # the others: squared
 
 
 def arm_overrides(arm: str, args: argparse.Namespace, seed: int) -> list[str]:
@@ -72,7 +74,7 @@ def arm_overrides(arm: str, args: argparse.Namespace, seed: int) -> list[str]:
             "league.team_phase_env_steps=null",  # both sides' phases: the same budget
             "league.snapshot_win_rate=1.0", f"league.min_phase_episodes={10**9}",  # a phase ends on its budget only
             f"league.exploiters=[{'attacker, team' if exploiters else ''}]",
-            f"league.pfsp={'variance' if arm == 'league-variance' else 'squared'}"]
+            f"league.pfsp={PFSP_OF_ARM.get(arm, 'squared')}"]
 
 
 def final_player(players: list[Player], side: str, kind: str = "snapshot") -> Player | None:

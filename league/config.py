@@ -234,8 +234,12 @@ class LeagueSettings(Strict):
     team_phase_env_steps: int | None = Field(None, ge=1)
     """Self-play mode: the team's phases end after this many env steps instead (default:
     ``phase_env_steps``); an attacker phase's budget is shared by its attackers, the team's is its own."""
-    pfsp: Literal["squared", "variance", "uniform"] = "squared"
-    """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat."""
+    pfsp: Literal["squared", "variance", "uniform", "nash"] = "squared"
+    """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat; or ``nash``,
+    PSRO's rule: the other side's Nash mixture in the meta-game of every frozen player (snapshots
+    and scripted players, each pair's newest evaluation on the fixed games; a pair not evaluated
+    yet, such as a new snapshot's, is played when a match plan first needs it), whatever the
+    learner's win rates."""
     scripted_share: dict[Side, Annotated[float, Field(ge=0, le=1)]] = Field(default_factory=dict)
     """Per side, the share of its learners' games held for the other side's scripted players,
     spread over them by the ``pfsp`` weighting; PFSP draws the rest over the whole pool,

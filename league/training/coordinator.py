@@ -33,6 +33,7 @@ import numpy as np
 
 from league.rllib import bridge
 from league.config import RunConfig
+from league.analysis.nash import SUPPORT_THRESHOLD, meta_game, meta_game_players, missing_pairs
 from league.evaluation.learning_curves import LearningCurves, Measurements
 from league.evaluation.engine import EvaluationPool, PairEvaluation, evaluate_pairs
 from league.evaluation.results import record_evaluations
@@ -178,8 +179,30 @@ class Coordinator:
         table = aggregate(self.store.outcome_rows("training"))
         return [win_rate(*record_against(table, learner.side, learner.id, opponent.id)) for opponent in opponents]
 
-    def match_plan(self) -> tuple[MatchPlan, dict[str, dict[str, float]]]:
-        """This iteration's plan, and each learner's PFSP probability per opponent name.
+    def meta_game_evaluations(self) -> list[PairEvaluation]:
+        """PSRO's rule (``league.pfsp: nash``) needs every pair of frozen players evaluated: the
+        pairs without an evaluation yet (a new snapshot's), played now, to be recorded with the iteration."""
+        attackers, teams = meta_game_players(self.store.players())
+        missing = missing_pairs(attackers, teams, aggregate(self.store.newest_evaluation_rows()))
+        return self.evaluate(missing) if missing else []
+
+    def nash_weights(self, side: str, opponents: list[Player], played: list[PairEvaluation]) -> list[float]:
+        """Each opponent's weight in its side's Nash mixture of the meta-game of every frozen
+        player, on each pair's newest evaluation (``played``: evaluated this iteration)."""
+        attackers, teams = meta_game_players(self.store.players())
+        payoff = aggregate(self.store.newest_evaluation_rows())
+        payoff.update({(r.attacker.id, r.team.id): (r.attacker_wins, r.games) for r in played})
+        meta = meta_game(attackers, teams, payoff)
+        if meta is None:
+            raise RuntimeError("league.pfsp: nash needs every pair of frozen players evaluated (meta_game_evaluations)")
+        players, mixture = (meta.teams, meta.equilibrium.column_mixture) if side == "attacker" else (
+            meta.attackers, meta.equilibrium.row_mixture)
+        by_id = {p.id: float(w) if w > SUPPORT_THRESHOLD else 0.0 for p, w in zip(players, mixture)}
+        return [by_id.get(o.id, 0.0) for o in opponents]
+
+    def match_plan(self, played: list[PairEvaluation] = ()) -> tuple[MatchPlan, dict[str, dict[str, float]]]:
+        """This iteration's plan, and each learner's PFSP probability per opponent name
+        (``played``: the meta-game's pairs evaluated for this iteration, ``meta_game_evaluations``).
 
         The side's exploiters join the plan as further entries with the other side's current
         learners as their only, equally likely, opponents."""
@@ -187,9 +210,11 @@ class Coordinator:
         learners = self.learners(side)
         opponents = self.candidates(side)
         scripted = [o.kind == "scripted" for o in opponents]
-        share = self.run.league.scripted_share.get(side, 0.0)
+        league = self.run.league
+        share = league.scripted_share.get(side, 0.0)
+        nash = self.nash_weights(side, opponents, list(played)) if league.pfsp == "nash" else None
         probabilities = [
-            with_scripted_share(self.learner_win_rates(learner, opponents), scripted, share, self.run.league.pfsp)
+            with_scripted_share(self.learner_win_rates(learner, opponents), scripted, share, league.pfsp, nash)
             for learner in learners
         ]
         exploiters = self.exploiters(side)
@@ -209,7 +234,10 @@ class Coordinator:
     def train_iteration(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
         """Train once against this iteration's opponents, count what was played, evaluate when
         due, end the phase when the schedule says so, checkpoint when due, commit, report."""
-        plan, weights = self.match_plan()
+        started = time.perf_counter()
+        played = self.meta_game_evaluations() if self.run.league.pfsp == "nash" else []
+        meta_seconds = time.perf_counter() - started
+        plan, weights = self.match_plan(played)
         bridge.set_match_plan(self.algo, plan)
         bridge.begin_iteration(self.algo, self.run.seed, self.state.iteration + 1)
         started = time.perf_counter()
@@ -226,11 +254,12 @@ class Coordinator:
         learners = self.learners(phase.side)
         every = self.run.evaluation.every_iterations
         started = time.perf_counter()
-        evaluation = self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else []
+        evaluation = played + (self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else [])
         curves = self.curves.measure(
             lambda learner: bridge.live_module(self.algo, self.run, learner), self.store, learners, self.candidates(phase.side), steps_before, st.learner_env_steps
         )
-        timing = IterationTiming(sampling=seconds - learning, learning=learning, evaluation=time.perf_counter() - started)
+        timing = IterationTiming(sampling=seconds - learning, learning=learning,
+                                 evaluation=time.perf_counter() - started + meta_seconds)
         self.time_split.training += seconds
         self.time_split.evaluation += timing.evaluation
         trained_phase = replace(phase)  # this iteration's phase, before a phase change
@@ -352,6 +381,10 @@ class Coordinator:
             current = replace(learner, checkpoint=str(path.relative_to(self.run_dir)))
             for opponent in self.candidates(side):
                 pairs.append((current, opponent) if side == "attacker" else (opponent, current))
+        return self.evaluate(pairs)
+
+    def evaluate(self, pairs: list[tuple[Player, Player]]) -> list[PairEvaluation]:
+        """``(attacker, team)`` pairs on the fixed games, by the evaluation workers (started at the first call)."""
         ev = self.run.evaluation
         if self.evaluation_pool is None and ev.workers > 0:
             self.evaluation_pool = EvaluationPool(

@@ -112,6 +112,17 @@ def test_a_scripted_share_holds_that_much_of_the_mass_for_the_scripted_players_w
     np.testing.assert_array_equal(with_scripted_share(x, [True, True, False], 0.0, "squared"), p)
 
 
+def test_the_nash_weighting_is_the_given_mixture_whatever_the_win_rates():
+    x = [0.9, 0.5, 0.1]
+    np.testing.assert_allclose(pfsp_probabilities(x, "nash", [0.2, 0.0, 0.6]), [0.25, 0.0, 0.75])
+    np.testing.assert_allclose(pfsp_probabilities(x, "nash", [0.0, 0.0, 0.0]), [1 / 3] * 3)  # all zero: uniform
+    # the scripted share spreads over the scripted candidates by their Nash weights
+    shared = with_scripted_share(x, [True, True, False], 0.5, "nash", [0.2, 0.0, 0.6])
+    np.testing.assert_allclose(shared, 0.5 * np.array([0.25, 0.0, 0.75]) + 0.5 * np.array([1.0, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="Nash weight"):
+        pfsp_probabilities(x, "nash")
+
+
 def test_pfsp_weightings():
     np.testing.assert_allclose(pfsp_probabilities([0.0, 0.5, 1.0], "squared"), [0.8, 0.2, 0.0])
     np.testing.assert_allclose(pfsp_probabilities([0.5, 0.9], "variance"), [0.25 / 0.34, 0.09 / 0.34])

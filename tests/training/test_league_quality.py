@@ -42,6 +42,7 @@ def test_every_arm_gives_both_sides_the_same_total(league_quality):
         expected = 50_000 if arm == "league-exploiters" else 100_000
         assert budgets == {"attacker": expected, "team": expected}, arm
         assert run.league.exploiters == (["attacker", "team"] if arm == "league-exploiters" else [])
+        assert run.league.pfsp == {"league-variance": "variance", "league-psro": "nash"}.get(arm, "squared"), arm
         if run.league.mode == "selfplay":  # phases end on their budget, never on a win rate
             assert run.league.min_phase_episodes > 10**6
     naive = load_config("selfplay_league", league_quality.arm_overrides("naive", args, 1)).league.phases
