@@ -1,4 +1,4 @@
-"""Is the league any good? The issue-18 comparison: ``python bench/league_quality.py``.
+"""Is the league any good? The league-quality study: ``python bench/league_quality.py``.
 
 Trains one run per arm from ``configs/selfplay_league.yaml`` with the same game, PPO
 settings and env-step budget per side, then compares the final players of each side:
@@ -23,8 +23,9 @@ Each arm is trained once per ``--train-seeds`` seed (``OUT/ARM/seed-S``); an arm
 differ only in their seed. For each run's final team (and final attacker): the win rate
 against every scripted player of the other side and every arm's final player of the other
 side of the same training seed on the same ``--episodes`` fixed games (Wilson 95%
-intervals), and its exploitability: ``--seeds`` best responses of ``--br-env-steps`` each
-(``league.exploit``; their mean). Per arm, the mean exploitability over training seeds with
+intervals), and its exploitability: ``--seeds`` best responses (``league.exploit``; their
+mean) of ``--br-env-steps`` each, against a team, or ``--team-br-env-steps`` (a team's best
+response to an attacker: the team learns more slowly). Per arm, the mean exploitability over training seeds with
 a 95% bootstrap interval over the training seeds. Writes ``OUT/league_quality.md``.
 Restarts reuse finished runs and best responses (and resume unfinished runs).
 """
@@ -84,24 +85,30 @@ def final_player(players: list[Player], side: str, kind: str = "snapshot") -> Pl
     return max(snapshots, key=lambda p: p.version, default=None)
 
 
+def br_budget(player: Player, args: argparse.Namespace) -> int:
+    """The env steps of each best response to ``player``: a team's to an attacker, an attacker's to a team."""
+    return args.team_br_env_steps if player.side == "attacker" else args.br_env_steps
+
+
 def exploitability_of(run_dir: Path, player: Player, args: argparse.Namespace):
     """Train the missing best responses against ``player`` (``league.exploit``), then read them all back."""
+    budget = br_budget(player, args)
     _, store = open_run(run_dir)
     try:
         done = [p for p in store.players(kind="best_response")
-                if p.parent == player.id and p.env_step_budget == args.br_env_steps]
+                if p.parent == player.id and p.env_step_budget == budget]
     finally:
         store.close()
     if len(done) < args.seeds:
         print(f"exploiting {run_dir.name}/{player.name}: {args.seeds - len(done)} best response(s)", flush=True)
         subprocess.run([sys.executable, "-m", "league.exploit", "--run-dir", str(run_dir), "--player", player.name,
-                        "--env-steps", str(args.br_env_steps), "--seeds", str(args.seeds - len(done)),
+                        "--env-steps", str(budget), "--seeds", str(args.seeds - len(done)),
                         "--episodes", str(args.episodes)], check=True)
     _, store = open_run(run_dir)
     try:
         players = store.players()
         found = [e for e in exploitability(players, store.newest_evaluation_rows())
-                 if e.exploited.id == player.id and e.budget == args.br_env_steps]
+                 if e.exploited.id == player.id and e.budget == budget]
     finally:
         store.close()
     return found[0]
@@ -122,13 +129,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--phase-env-steps", type=int, default=200_000)
     parser.add_argument("--terminal-reward", type=float, default=30.0)
     parser.add_argument("--br-env-steps", type=int, default=200_000, help="each best response's training budget")
+    parser.add_argument("--team-br-env-steps", type=int, help="a team's best response's budget (default: --br-env-steps)")
     parser.add_argument("--seeds", type=int, default=3, help="best responses per final player")
     parser.add_argument("--episodes", type=int, default=1000, help="fixed evaluation games per pair")
     parser.add_argument("--train-seeds", type=int, nargs="+", default=[0, 1, 2], help="each arm's training seeds")
     parser.add_argument("--sides", nargs="+", default=["team", "attacker"], choices=["team", "attacker"],
-                        help="whose exploitability to measure (teams first: the issue's headline)")
+                        help="whose exploitability to measure (teams first)")
     args = parser.parse_args(argv)
-    if args.phases < 2 or args.phases % 2 or min(args.phase_env_steps, args.br_env_steps, args.seeds, args.episodes) < 1:
+    args.team_br_env_steps = args.team_br_env_steps or args.br_env_steps
+    if args.phases < 2 or args.phases % 2 or min(args.phase_env_steps, args.br_env_steps, args.team_br_env_steps, args.seeds, args.episodes) < 1:
         parser.error("--phases must be even and at least 2; budgets, --seeds and --episodes at least 1")
     args.out.mkdir(parents=True, exist_ok=True)
     walls_file = args.out / "wall_times.json"
@@ -169,7 +178,8 @@ def main(argv: list[str] | None = None) -> int:
         f"Settings: `selfplay_league.yaml`, method-2 attacker, terminal reward +-{args.terminal_reward:g}, "
         f"{args.phases // 2 * args.phase_env_steps:,} env steps per side in every arm, training seeds "
         f"{', '.join(map(str, args.train_seeds))}; {args.episodes} fixed evaluation games per pair (Wilson 95%); "
-        f"exploitability: {args.seeds} best responses of {args.br_env_steps:,} env steps each per final player "
+        f"exploitability: {args.seeds} best responses per final player, {args.br_env_steps:,} env steps each against "
+        f"a team, {args.team_br_env_steps:,} against an attacker "
         "(their mean), and per arm the mean over training seeds (bootstrap 95% over training seeds). Wall time per "
         "training run: " + ", ".join(f"{label} {seconds:.0f} s" for label, seconds in walls.items()) + ".",
     ]
