@@ -141,7 +141,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--phases must be even and at least 2; budgets, --seeds and --episodes at least 1")
     args.out.mkdir(parents=True, exist_ok=True)
     walls_file = args.out / "wall_times.json"
-    walls = json.loads(walls_file.read_text()) if walls_file.exists() else {}
+
+    def read_walls() -> dict[str, float]:
+        return json.loads(walls_file.read_text()) if walls_file.exists() else {}
     runs = [(arm, seed, args.out / arm / f"seed-{seed}") for arm in args.arms for seed in args.train_seeds]
 
     def task(arm: str, seed: int, run_dir: Path) -> tuple:
@@ -159,8 +161,8 @@ def main(argv: list[str] | None = None) -> int:
         if not finished(run_dir):
             started = time.perf_counter()
             train_run(*task(arm, seed, run_dir))
-            walls[f"{arm} seed {seed}"] = time.perf_counter() - started
-            walls_file.write_text(json.dumps(walls, indent=1))
+            # read again: other invocations (other arms or seeds, into the same OUT) may have added theirs
+            walls_file.write_text(json.dumps({**read_walls(), f"{arm} seed {seed}": time.perf_counter() - started}, indent=1))
         run, store = open_run(run_dir)
         try:
             players = store.players()
@@ -181,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
         f"exploitability: {args.seeds} best responses per final player, {args.br_env_steps:,} env steps each against "
         f"a team, {args.team_br_env_steps:,} against an attacker "
         "(their mean), and per arm the mean over training seeds (bootstrap 95% over training seeds). Wall time per "
-        "training run: " + ", ".join(f"{label} {seconds:.0f} s" for label, seconds in walls.items()) + ".",
+        "training run: " + ", ".join(f"{label} {seconds:.0f} s" for label, seconds in read_walls().items()) + ".",
     ]
     for side in args.sides:
         other = other_side(side)
