@@ -55,3 +55,12 @@ def test_an_arms_training_seeds_differ_only_in_their_seed(league_quality):
         runs = [load_config("selfplay_league", league_quality.arm_overrides(arm, args, seed)).model_dump() for seed in (0, 1, 2)]
         assert [run.pop("seed") for run in runs] == [0, 1, 2], arm
         assert runs[0] == runs[1] == runs[2], arm
+
+
+def test_a_teams_best_response_to_an_attacker_gets_its_own_budget(league_quality):
+    from league.core.players import Player
+
+    attacker = Player(id=1, side="attacker", kind="snapshot", version=3, reward_method=2)
+    team = Player(id=2, side="team", kind="snapshot", version=3)
+    args = argparse.Namespace(br_env_steps=100, team_br_env_steps=300)
+    assert (league_quality.br_budget(attacker, args), league_quality.br_budget(team, args)) == (300, 100)
