@@ -115,6 +115,14 @@ class PPOSettings(Strict):
     outputs, so the untrained attacker plays lead intercept and training learns the
     correction (residual policy learning). ``none``: the network's output alone, as in the
     paper. Needs ``game.observation: rich`` and ``game.action_mode: relative``."""
+    attacker_heading_cosines: bool = False
+    """The attacker's network also reads two cosines computed from its observation: T's heading
+    against T's line to the terminal, D's heading against D's line to A
+    (``league.rllib.modules.HeadingCosines``). Trained on the four scripted teams, a method-1
+    attacker without them stayed at lead intercept's level against avoid + bisector (0.492,
+    lead intercept 0.510); with them it won 0.759 there and stayed even with lead intercept
+    against the straight-flying teams (docs/results/selfplay-league.md). Needs
+    ``game.observation: rich``."""
     bf16: bool = False
     """Compute the networks' forward and backward passes in the learner's update under
     ``torch.autocast`` to bfloat16 where the CPU multiplies bfloat16 natively (AMX or AVX-512
@@ -338,6 +346,8 @@ class RunConfig(Strict):
             raise ValueError("ppo.lr_schedule must start at 0 env steps and list increasing env steps")
         if self.ppo.attacker_prior != "none" and (self.game.observation, self.game.action_mode) != ("rich", "relative"):
             raise ValueError("ppo.attacker_prior needs game.observation: rich and game.action_mode: relative")
+        if self.ppo.attacker_heading_cosines and self.game.observation != "rich":
+            raise ValueError("ppo.attacker_heading_cosines needs game.observation: rich")
         if self.ppo.minibatch_size > self.ppo.train_batch_size:
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
         if self.ppo.minibatch_counts != "rows" and self.resources.sampler != "fast":

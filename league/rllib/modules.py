@@ -10,7 +10,9 @@ Every agent's observation arrives with the env's 22-number global state appended
   global state their values differ, and a critic blind to the role can only learn their
   average, which biases both agents' advantages.
   With ``prior: lead_intercept`` (``PPOSettings.attacker_prior``) the actor is a
-  ``ResidualActor``: lead intercept's turn plus the network's output.
+  ``ResidualActor``: lead intercept's turn plus the network's output. With
+  ``heading_cosines`` (``PPOSettings.attacker_heading_cosines``) the actor's network reads
+  two numbers more, ``HeadingCosines``.
 * ``ScriptedModule``: a scripted player of ``envs.scripted``, reading the global state;
   it returns actions directly and is never trained.
 """
@@ -51,8 +53,13 @@ class _RLModuleConfigNotice(logging.Filter):
 logging.getLogger("ray._common.deprecation").addFilter(_RLModuleConfigNotice())
 
 
-def mlp(inputs: int, hidden: list[int], outputs: int, last_gain: float) -> nn.Sequential:
+def mlp(inputs: int, hidden: list[int], outputs: int, last_gain: float, features: nn.Module | None = None) -> nn.Sequential:
+    """Tanh layers of ``hidden`` sizes and a linear head; ``features``, if given, first adds
+    ``features.size`` numbers to the ``inputs``."""
     layers: list[nn.Module] = []
+    if features is not None:
+        layers.append(features)
+        inputs += features.size
     for size in hidden:
         linear = nn.Linear(inputs, size)
         nn.init.orthogonal_(linear.weight, gain=np.sqrt(2))
@@ -95,6 +102,24 @@ class LeadInterceptTurn(nn.Module):
         return turn.clamp(-1.0, 1.0)
 
 
+class HeadingCosines(nn.Module):
+    """The attacker's ``rich`` observation with two numbers appended: the cosine between T's
+    heading and T's line to the terminal, and between D's heading and D's line to A. They tell
+    the scripted teams apart (a straight-flying T's is 1, a pursuing D's is 1); the observation
+    holds them already, but as a quotient of its numbers, which an attacker's network trained
+    on all four teams did not learn to read (docs/results/selfplay-league.md)."""
+
+    size = 2
+
+    def forward(self, own: torch.Tensor) -> torch.Tensor:
+        a_to_t, t_heading = own[..., 2:5], own[..., 6:9]  # T - A, T's unit heading (A's yaw frame)
+        a_to_d, d_heading = own[..., 9:12], own[..., 13:16]
+        t_to_terminal = own[..., 16:19] - a_to_t  # (terminal - A) - (T - A)
+        cos_t = (t_heading * t_to_terminal).sum(-1) / torch.linalg.vector_norm(t_to_terminal, dim=-1).clamp_min(1e-6)
+        cos_d = -(d_heading * a_to_d).sum(-1) / torch.linalg.vector_norm(a_to_d, dim=-1).clamp_min(1e-6)
+        return torch.cat((own, torch.stack((cos_t, cos_d), dim=-1)), dim=-1)
+
+
 class ResidualActor(nn.Module):
     """A scripted player's action plus a network's: the network learns the correction."""
 
@@ -121,7 +146,8 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         critic_inputs = total - self.actor_inputs + ROLE_SIZE if self.critic_input == "global" else self.actor_inputs
         actions = self.action_space.shape[0]
         hidden = list(cfg["hidden"])
-        self.pi = mlp(self.actor_inputs, hidden, actions, last_gain=0.01)
+        features = HeadingCosines() if cfg.get("heading_cosines", False) else None
+        self.pi = mlp(self.actor_inputs, hidden, actions, last_gain=0.01, features=features)
         prior = cfg.get("prior", "none")
         if prior != "none":
             self.pi = ResidualActor(PRIORS[prior](GameConfig(**cfg["game"])), self.pi)
