@@ -118,10 +118,9 @@ class PPOSettings(Strict):
     attacker_heading_cosines: bool = False
     """The attacker's network also reads two cosines computed from its observation: T's heading
     against T's line to the terminal, D's heading against D's line to A
-    (``league.rllib.modules.HeadingCosines``). Trained on the four scripted teams, a method-1
-    attacker without them stayed at lead intercept's level against avoid + bisector (0.492,
-    lead intercept 0.510); with them it won 0.759 there and stayed even with lead intercept
-    against the straight-flying teams (docs/results/selfplay-league.md). Needs
+    (``league.rllib.modules.HeadingCosines``). They tell the scripted teams apart: a
+    straight-flying T's first cosine is 1, a pursuing D's second. The observation holds them
+    already, as quotients of its numbers (docs/results/selfplay-league.md). Needs
     ``game.observation: rich``."""
     bf16: bool = False
     """Compute the networks' forward and backward passes in the learner's update under

@@ -106,8 +106,7 @@ class HeadingCosines(nn.Module):
     """The attacker's ``rich`` observation with two numbers appended: the cosine between T's
     heading and T's line to the terminal, and between D's heading and D's line to A. They tell
     the scripted teams apart (a straight-flying T's is 1, a pursuing D's is 1); the observation
-    holds them already, but as a quotient of its numbers, which an attacker's network trained
-    on all four teams did not learn to read (docs/results/selfplay-league.md)."""
+    holds them already, but only as quotients of its numbers (docs/results/selfplay-league.md)."""
 
     size = 2
 
