@@ -45,8 +45,8 @@ def test_an_attacker_with_the_prior_and_a_silent_network_plays_lead_intercept():
 
 
 @pytest.mark.parametrize("fmt", ["export", "torchscript", "onnx"])
-def test_the_prior_travels_in_every_export_format(tmp_path, fmt):
-    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept"])
+def test_the_prior_and_the_heading_cosines_travel_in_every_export_format(tmp_path, fmt):
+    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept", "ppo.attacker_heading_cosines=true"])
     module = attacker_with_prior(run)
     rng = np.random.default_rng(1)
     game = BatchedGame(run.game, 256)
