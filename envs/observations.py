@@ -58,6 +58,12 @@ from envs.kinematics import heading_vectors
 
 PAPER_SIZE = 15
 RICH_SIZE = 21
+# Where the ``rich`` table's blocks start: an other's seven numbers are its relative position
+# (+0..2), distance (+3) and heading (+4..6).
+RICH_FIRST_OTHER = 2
+RICH_SECOND_OTHER = 9
+RICH_HEADING = 4
+RICH_TERMINAL = 16
 ROLE_SIZE = 2
 GLOBAL_STATE_SIZE = 22
 # Columns of the global state (layout in the module docstring).

@@ -27,7 +27,15 @@ import torch
 from torch import nn
 
 from envs.config import GameConfig
-from envs.observations import ROLE_SIZE, role_of, split_policy_input
+from envs.observations import (
+    RICH_FIRST_OTHER,
+    RICH_HEADING,
+    RICH_SECOND_OTHER,
+    RICH_TERMINAL,
+    ROLE_SIZE,
+    role_of,
+    split_policy_input,
+)
 from envs.scripted import act_from_state
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
@@ -85,12 +93,14 @@ class LeadInterceptTurn(nn.Module):
         self.v_targeter = game.v_targeter / game.position_scale
         self.max_yaw_change = game.max_yaw_change
         self.max_pitch_change = game.max_pitch_change
+        self.t = RICH_FIRST_OTHER  # the attacker sees T first (envs.observations)
+        self.t_heading = RICH_FIRST_OTHER + RICH_HEADING
 
     def forward(self, own: torch.Tensor) -> torch.Tensor:
         own = own.float()
         pitch = torch.atan2(own[..., 0], own[..., 1])
-        r = own[..., 2:5]  # T - A
-        u = own[..., 6:9] * self.v_targeter  # T's velocity
+        r = own[..., self.t : self.t + 3]  # T - A
+        u = own[..., self.t_heading : self.t_heading + 3] * self.v_targeter  # T's velocity
         # envs.geometry.intercept_time: the positive root of |r + u t| = v_A t.
         ru = (r * u).sum(-1)
         margin = self.v_attacker**2 - (u * u).sum(-1)
@@ -110,10 +120,16 @@ class HeadingCosines(nn.Module):
 
     size = 2
 
+    def __init__(self):
+        super().__init__()
+        # Block starts as attributes: TorchScript does not read module-level ints in forward.
+        self.t, self.d, self.terminal, self.heading = RICH_FIRST_OTHER, RICH_SECOND_OTHER, RICH_TERMINAL, RICH_HEADING
+
     def forward(self, own: torch.Tensor) -> torch.Tensor:
-        a_to_t, t_heading = own[..., 2:5], own[..., 6:9]  # T - A, T's unit heading (A's yaw frame)
-        a_to_d, d_heading = own[..., 9:12], own[..., 13:16]
-        t_to_terminal = own[..., 16:19] - a_to_t  # (terminal - A) - (T - A)
+        t, d, h = self.t, self.d, self.heading  # the attacker sees T first, then D, in its yaw frame
+        a_to_t, t_heading = own[..., t : t + 3], own[..., t + h : t + h + 3]
+        a_to_d, d_heading = own[..., d : d + 3], own[..., d + h : d + h + 3]
+        t_to_terminal = own[..., self.terminal : self.terminal + 3] - a_to_t  # (terminal - A) - (T - A)
         cos_t = (t_heading * t_to_terminal).sum(-1) / torch.linalg.vector_norm(t_to_terminal, dim=-1).clamp_min(1e-6)
         cos_d = -(d_heading * a_to_d).sum(-1) / torch.linalg.vector_norm(a_to_d, dim=-1).clamp_min(1e-6)
         return torch.cat((own, torch.stack((cos_t, cos_d), dim=-1)), dim=-1)
