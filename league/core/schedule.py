@@ -13,7 +13,9 @@
 
 A side's pool holds its exploiters' snapshots too (``league.exploiters``); the exploiters
 themselves play in their side's phases against the other side's newest snapshots only,
-and their games do not count in ``PhaseState`` (``league.training.coordinator``).
+and their games do not count in ``PhaseState`` (``league.training.coordinator``). With
+``league.exploiter_phases: final`` they train only in one more phase after the self-play
+phases, alone: its ``PhaseState`` counts their games (``trainee_kinds``).
 
 ``PhaseState`` is a phase's progress, kept by the coordinator in its resume state.
 """
@@ -46,6 +48,10 @@ class ProtocolSchedule:
     def side(self, index: int) -> str:
         return self.league.phases[index].learner
 
+    def trainee_kinds(self, index: int) -> tuple[str, ...]:
+        """The kinds of player that train in a phase, the first the one whose games end it."""
+        return ("learner",)
+
     def opponents(self, index: int, scripted: list[Player], snapshots: list[Player]) -> list[Player]:
         spec = self.league.phases[index]
         if spec.opponents == "scripted":
@@ -68,10 +74,18 @@ class SelfPlaySchedule:
 
     def __init__(self, league: LeagueSettings):
         self.league = league
-        self.phases = league.selfplay_phases
+        self.phases = league.selfplay_phases + (league.exploiter_phases == "final")
 
     def side(self, index: int) -> str:
         return "attacker" if index % 2 == 0 else "team"
+
+    def trainee_kinds(self, index: int) -> tuple[str, ...]:
+        """The kinds of player that train in a phase (learners, exploiters), the first the one
+        whose games end it: with ``exploiter_phases: final``, the learners alone but in the
+        last phase, the exploiters' alone."""
+        if self.league.exploiter_phases == "all":
+            return ("learner", "exploiter")
+        return ("exploiter",) if index == self.league.selfplay_phases else ("learner",)
 
     def opponents(self, index: int, scripted: list[Player], snapshots: list[Player]) -> list[Player]:
         return scripted + snapshots

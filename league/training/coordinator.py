@@ -10,6 +10,9 @@ whose only opponents are the other side's newest snapshots (``current_opponents`
 is trained, snapshotted at the phase end and checkpointed like a learner. Its games do
 not count towards the phase's end (``count_played``), and it never enters a pool but as
 a frozen ``exploiter_snapshot``. It keeps its weights from phase to phase (no reset).
+With ``league.exploiter_phases: final`` the exploiters train only in one more phase after
+the self-play phases, alone, from their untrained policies; that phase counts their games
+(``trainee_kinds`` of the schedule).
 
 Which side learns in a phase, against whom, and when the phase ends is the run's
 schedule (``league.core.schedule``: the paper's protocol, or self-play).
@@ -139,12 +142,18 @@ class Coordinator:
     def learners(self, side: str) -> list[Player]:
         return self.store.players(side=side, kind="learner")
 
-    def exploiters(self, side: str) -> list[Player]:
-        return self.store.players(side=side, kind="exploiter")
+    def in_phase(self, kind: str) -> list[Player]:
+        """The players of ``kind`` (learner, exploiter) that train in the current phase."""
+        phase = self.state.phase
+        return self.store.players(side=phase.side, kind=kind) if kind in self.schedule.trainee_kinds(phase.index) else []
 
-    def trainees(self, side: str | None = None) -> list[Player]:
-        """Every player whose module trains (learners and exploiters), of ``side`` or of both sides."""
-        return [p for p in self.store.players(side=side) if p.trains]
+    def phase_trainees(self) -> list[Player]:
+        """Every player that trains in the current phase: its learners, then its exploiters."""
+        return [p for kind in self.schedule.trainee_kinds(self.state.phase.index) for p in self.in_phase(kind)]
+
+    def trainees(self) -> list[Player]:
+        """Every player whose module trains (learners and exploiters), of both sides, in any phase."""
+        return [p for p in self.store.players() if p.trains]
 
     def module_players(self) -> tuple[dict[str, Player], dict[tuple[str, str], Player]]:
         """Players by attacker module, and team players by (targeter, defender) module."""
@@ -207,7 +216,7 @@ class Coordinator:
         The side's exploiters join the plan as further entries with the other side's current
         learners as their only, equally likely, opponents."""
         side = self.state.phase.side
-        learners = self.learners(side)
+        learners = self.in_phase("learner")
         opponents = self.candidates(side)
         scripted = [o.kind == "scripted" for o in opponents]
         league = self.run.league
@@ -217,7 +226,7 @@ class Coordinator:
             with_scripted_share(self.learner_win_rates(learner, opponents), scripted, share, league.pfsp, nash)
             for learner in learners
         ]
-        exploiters = self.exploiters(side)
+        exploiters = self.in_phase("exploiter")
         targets = self.current_opponents(side) if exploiters else []
         plan = MatchPlan(
             learners=[player.modules() for player in learners + exploiters],
@@ -254,7 +263,7 @@ class Coordinator:
         learners = self.learners(phase.side)
         every = self.run.evaluation.every_iterations
         started = time.perf_counter()
-        evaluation = played + (self.evaluate_learners(phase.side) if every and st.iteration % every == 0 else [])
+        evaluation = played + (self.evaluate_learners() if every and st.iteration % every == 0 else [])
         curves = self.curves.measure(
             lambda learner: bridge.live_module(self.algo, self.run, learner), self.store, learners, self.candidates(phase.side), steps_before, st.learner_env_steps
         )
@@ -265,7 +274,7 @@ class Coordinator:
         trained_phase = replace(phase)  # this iteration's phase, before a phase change
         snapshots = []
         if self.schedule.finished(phase):
-            snapshots = [self.snapshot(trainee) for trainee in self.trainees(phase.side)]
+            snapshots = [self.snapshot(trainee) for trainee in self.phase_trainees()]
             self.next_phase()
         due = snapshots or st.training_done or st.iteration % self.run.checkpoint_every == 0
         checkpoint = self.checkpoint() if due else None
@@ -283,22 +292,25 @@ class Coordinator:
 
         An exploiter's games and env steps are not the phase's progress: the phase counts its
         learners' wins and episodes, and every env step but the exploiters' (a phase starts
-        with new games: none of the previous phase's side is finished in it)."""
+        with new games: none of the previous phase's side is finished in it). In a phase of
+        exploiters alone (``league.exploiter_phases: final``) it counts theirs."""
         st, phase = self.state, self.state.phase
         rows = self.outcome_rows(result)
-        learner_ids = {p.id for p in self.learners(phase.side)}
+        counted = self.schedule.trainee_kinds(phase.index)[0]
+        counted_ids = {p.id for p in self.in_phase(counted)}
         for row in rows:
             st.episodes += row.count
-            if learner_ids & {row.attacker, row.team}:
+            if counted_ids & {row.attacker, row.team}:
                 phase.episodes += row.count
                 phase.learner_wins += row.wins(phase.side)
         total_steps = bridge.sampled_env_steps(result)
         steps = total_steps - st.env_steps
         st.env_steps = total_steps
-        trainee_steps = bridge.learner_env_steps(result, self.trainees())
+        trainees = self.trainees()
+        trainee_steps = bridge.learner_env_steps(result, trainees)
         for name, played in trainee_steps.items():
             st.learner_env_steps[name] = st.learner_env_steps.get(name, 0) + played
-        phase.env_steps += steps - sum(trainee_steps[p.name] for p in self.store.players(kind="exploiter"))
+        phase.env_steps += steps - sum(trainee_steps[p.name] for p in trainees if p.kind != counted)
         return rows, steps
 
     def commit(self, result: dict[str, Any], phase: PhaseState, rows: list[OutcomeCount],
@@ -364,18 +376,20 @@ class Coordinator:
             return
         side = self.schedule.side(index)
         self.state.phase = PhaseState(index=index, side=side, start_iteration=self.state.iteration)
-        self.set_trainable(side)
+        self.set_trainable()
         # A phase starts with new games: the old phase's learner plays no game of the new one
         # (its unfinished games trained it as truncated chunks, and are not counted as played).
         bridge.restart_games(self.algo)
 
-    def set_trainable(self, side: str) -> None:
-        bridge.set_trainable(self.algo, [trainee.name for trainee in self.trainees(side)])
+    def set_trainable(self) -> None:
+        """Train the current phase's players only."""
+        bridge.set_trainable(self.algo, [trainee.name for trainee in self.phase_trainees()])
 
-    def evaluate_learners(self, side: str) -> list[PairEvaluation]:
-        """The side's learners, as they are now, against their opponents on the fixed games."""
+    def evaluate_learners(self) -> list[PairEvaluation]:
+        """The phase's learners, as they are now, against their opponents on the fixed games."""
+        side = self.state.phase.side
         pairs = []
-        for learner in self.learners(side):
+        for learner in self.in_phase("learner"):
             path = fresh_directory(self.run_dir / "players" / learner.name)
             bridge.save_module(self.algo, learner.name, path)
             current = replace(learner, checkpoint=str(path.relative_to(self.run_dir)))
@@ -454,7 +468,7 @@ class Coordinator:
         if self.run.ppo.bf16:
             self.log("ppo.bf16: the learner's networks compute in bfloat16" if bridge.learner_computes_in_bf16(self.run)
                      else "ppo.bf16: this CPU has no native bfloat16 matmuls; the learner computes in float32")
-        self.set_trainable(self.state.phase.side)
+        self.set_trainable()
         while not self.state.training_done:
             if stop:
                 stop.check()
