@@ -48,6 +48,7 @@ def best_response_config(run: RunConfig, exploited: Player, seed: int, env_steps
     data["league"]["phases"] = [{"learner": other_side(exploited.side), "env_steps": env_steps, "opponents": "scripted"}]
     data["league"]["attacker_reward_methods"] = None  # one attacker: game.attacker_reward
     data["league"]["exploiters"] = []  # the best response trains alone
+    data["league"]["exploiter_phases"] = "all"
     # One opponent: nothing to weigh (PSRO's rule would need a meta-game the scratch run has not).
     data["league"]["pfsp"] = "uniform"
     data["evaluation"].update(every_iterations=0, workers=0, curve_every_env_steps=0)
