@@ -266,14 +266,19 @@ class LeagueSettings(Strict):
     The phase-end rule leaves the exploiters' games and env steps out (it measures the
     learners' progress as without exploiters), so a phase with exploiters samples about
     twice the env steps."""
-    exploiter_phases: Literal["all", "final"] = "all"
+    exploiter_phases: Literal["all", "final", "all_and_final"] = "all"
     """Self-play mode, with ``exploiters``: ``all``: the exploiters train in every phase of their
     side, beside its learners, as above; ``final``: only in one more phase after the
     ``selfplay_phases``, in which nothing else trains (its budget is ``phase_env_steps``, shared
     by the exploiters). Each exploiter starts it from its untrained policy and trains against
     the other side's final snapshots: a fresh best response to the league's final players, frozen
-    into the meta-game as ``-exploiter-v1``. ``final`` needs ``exploiters`` to list only the side
-    that follows the last phase (``attacker`` after an even number of phases)."""
+    into the meta-game as ``-exploiter-v1``; ``all_and_final``: both. ``final`` and
+    ``all_and_final`` need ``exploiters`` to list only the side that follows the last phase
+    (``attacker`` after an even number of phases)."""
+    exploiters_restart: bool = False
+    """Self-play mode: each exploiter starts each of its phases after the first from its
+    learner's version 0 (the untrained policy, ``attacker-m2-v0``), with a new optimizer state,
+    as AlphaStar resets its main exploiters; ``false``: it trains on from phase to phase."""
     frozen_players_explore: bool = True
     """In training, frozen snapshots sample their actions from their policy (``true``) or play
     its mean (``false``), as every player does in evaluation. ``false`` trains a learner against
@@ -307,11 +312,11 @@ class LeagueSettings(Strict):
             raise ValueError("attacker_reward_methods must list distinct methods (1, 2, 3), at least one")
         if not self.scripted_attackers or not self.scripted_teams:
             raise ValueError("the league needs at least one scripted attacker and one scripted team")
-        if self.exploiter_phases == "final":
+        if self.exploiter_phases != "all":
             follows = "attacker" if self.selfplay_phases % 2 == 0 else "team"
             if self.mode != "selfplay" or self.exploiters != [follows]:
                 raise ValueError(
-                    f"league.exploiter_phases: final trains the exploiters of the side that follows the last "
+                    f"league.exploiter_phases: {self.exploiter_phases} trains the exploiters of the side that follows the last "
                     f"self-play phase: set league.exploiters to [{follows}] (mode: selfplay)"
                 )
         return self

@@ -74,18 +74,18 @@ class SelfPlaySchedule:
 
     def __init__(self, league: LeagueSettings):
         self.league = league
-        self.phases = league.selfplay_phases + (league.exploiter_phases == "final")
+        self.phases = league.selfplay_phases + (league.exploiter_phases != "all")
 
     def side(self, index: int) -> str:
         return "attacker" if index % 2 == 0 else "team"
 
     def trainee_kinds(self, index: int) -> tuple[str, ...]:
         """The kinds of player that train in a phase (learners, exploiters), the first the one
-        whose games end it: with ``exploiter_phases: final``, the learners alone but in the
-        last phase, the exploiters' alone."""
-        if self.league.exploiter_phases == "all":
-            return ("learner", "exploiter")
-        return ("exploiter",) if index == self.league.selfplay_phases else ("learner",)
+        whose games end it: with ``exploiter_phases: final`` or ``all_and_final``, the last
+        phase is the exploiters' alone."""
+        if index == self.league.selfplay_phases:  # (only with a final phase of exploiters)
+            return ("exploiter",)
+        return ("learner",) if self.league.exploiter_phases == "final" else ("learner", "exploiter")
 
     def opponents(self, index: int, scripted: list[Player], snapshots: list[Player]) -> list[Player]:
         return scripted + snapshots

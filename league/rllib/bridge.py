@@ -296,6 +296,22 @@ def add_snapshot(algo: Algorithm, run: RunConfig, snapshot: Player, source_modul
     )
 
 
+def restart_module(algo: Algorithm, module_id: str, source_module: str) -> None:
+    """Give ``module_id`` the weights of ``source_module`` and a new optimizer state (Adam's
+    moments and step count cleared): it trains on as if it were a new module with those weights."""
+    weights = learner_weights(algo, source_module)
+    algo.learner_group.set_weights({module_id: weights})
+
+    def clear(learner: Any) -> None:
+        for _, optimizer in learner.get_optimizers_for_module(module_id):
+            optimizer.state.clear()
+
+    algo.learner_group.foreach_learner(clear)
+    algo.env_runner_group.foreach_env_runner(  # set directly, as in ``add_snapshot``
+        lambda runner: runner.module[module_id].set_state(weights), local_env_runner=True
+    )
+
+
 def save_module(algo: Algorithm, module_id: str, path: Path) -> None:
     """Write one module (class, spaces, config and weights) for use without the algorithm."""
     module = algo.get_module(module_id)

@@ -184,6 +184,12 @@ class Coordinator:
             newest[snapshot.parent] = snapshot  # by lineage: the learner it was frozen from
         return list(newest.values())
 
+    def untrained(self, exploiter: Player) -> Player:
+        """The version 0 of the learner an exploiter is the twin of (same side, same reward method)."""
+        [untrained] = [p for p in self.store.players(side=exploiter.side, kind="snapshot")
+                       if p.version == 0 and p.reward_method == exploiter.reward_method]
+        return untrained
+
     def learner_win_rates(self, learner: Player, opponents: list[Player]) -> list[float]:
         table = aggregate(self.store.outcome_rows("training"))
         return [win_rate(*record_against(table, learner.side, learner.id, opponent.id)) for opponent in opponents]
@@ -376,6 +382,9 @@ class Coordinator:
             return
         side = self.schedule.side(index)
         self.state.phase = PhaseState(index=index, side=side, start_iteration=self.state.iteration)
+        if self.run.league.exploiters_restart:
+            for exploiter in self.in_phase("exploiter"):
+                bridge.restart_module(self.algo, exploiter.name, self.untrained(exploiter).name)
         self.set_trainable()
         # A phase starts with new games: the old phase's learner plays no game of the new one
         # (its unfinished games trained it as truncated chunks, and are not counted as played).
