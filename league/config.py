@@ -260,8 +260,8 @@ class LeagueSettings(Strict):
     side, same reward method) that trains in that side's phases on as many games as its learner
     (drawn per episode: the exploiters together play half of the phase's games), against only
     the other side's newest snapshots (its current learners; in the first phase the team's
-    untrained version 0). It keeps training from phase to phase (no
-    reset). At each phase end it is frozen like the learner (``team-exploiter-v1``, kind
+    untrained version 0). It keeps training from phase to phase (unless
+    ``exploiters_restart``). At each phase end it is frozen like the learner (``team-exploiter-v1``, kind
     ``exploiter_snapshot``) into its side's pool, where the other side's learner meets it.
     The phase-end rule leaves the exploiters' games and env steps out (it measures the
     learners' progress as without exploiters), so a phase with exploiters samples about
