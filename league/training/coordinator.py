@@ -10,7 +10,8 @@ whose only opponents are the other side's newest snapshots (``current_opponents`
 is trained, snapshotted at the phase end and checkpointed like a learner. Its games do
 not count towards the phase's end (``count_played``), and it never enters a pool but as
 a frozen ``exploiter_snapshot``. It keeps its weights from phase to phase, or, with
-``league.exploiters_restart``, starts each later phase from its learner's version 0. With ``league.exploiter_phases: final`` the exploiters train only in one more phase after
+``league.exploiters_restart``, starts each later phase from its learner's version 0.
+With ``league.exploiter_phases: final`` the exploiters train only in one more phase after
 the self-play phases, alone, from their untrained policies; that phase counts their games
 (``trainee_kinds`` of the schedule).
 
