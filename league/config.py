@@ -272,7 +272,8 @@ class LeagueSettings(Strict):
     ``selfplay_phases``, in which nothing else trains (its budget is ``phase_env_steps``, shared
     by the exploiters). Each exploiter starts it from its untrained policy and trains against
     the other side's final snapshots: a fresh best response to the league's final players, frozen
-    into the meta-game as ``-exploiter-v1``; ``all_and_final``: both. ``final`` and
+    into the meta-game as ``-exploiter-v1``; ``all_and_final``: both, each exploiter starting
+    the final phase where its previous phase left it (see ``exploiters_restart``). ``final`` and
     ``all_and_final`` need ``exploiters`` to list only the side that follows the last phase
     (``attacker`` after an even number of phases)."""
     exploiters_restart: bool = False
