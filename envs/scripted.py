@@ -11,6 +11,8 @@ decoded from their global states) to the direction it wants to fly, ``(N, 3)``;
 | attacker | ``proportional_navigation`` | turn the velocity at N times the line-of-sight rate;     |
 |          |                           | pure pursuit while T is behind A (no line-of-sight rate    |
 |          |                           | turns A around then)                                       |
+| attacker | ``evade_defender``        | fly straight away from D: never attacks, wins only when T  |
+|          |                           | does not reach the terminal in time (plays for time)       |
 | targeter | ``straight``              | fly at the terminal                                        |
 | targeter | ``avoid_attacker``        | fly at the terminal if T gets into the terminal sphere     |
 |          |                           | before A can get within its capture radius of T (the       |
@@ -92,6 +94,13 @@ def attacker_proportional_navigation(game: GameView) -> np.ndarray:
     return np.where(behind[:, None], los, navigation)
 
 
+def attacker_evade_defender(game: GameView) -> np.ndarray:
+    # Equal speeds and D's turn limits keep a fleeing A out of reach: a team wins only by
+    # flying T to the terminal while A is away, which a team that has only met attackers
+    # coming at T may never learn.
+    return game.positions[:, ATTACKER] - game.positions[:, DEFENDER]
+
+
 def targeter_straight(game: GameView) -> np.ndarray:
     return -game.positions[:, TARGETER]
 
@@ -142,6 +151,7 @@ PLAYERS: dict[str, dict[str, Direction]] = {
         "pure_pursuit": attacker_pure_pursuit,
         "lead_intercept": attacker_lead_intercept,
         "proportional_navigation": attacker_proportional_navigation,
+        "evade_defender": attacker_evade_defender,
     },
     "targeter": {"straight": targeter_straight, "avoid_attacker": targeter_avoid_attacker},
     "defender": {"pure_pursuit": defender_pure_pursuit, "bisector_intercept": defender_bisector_intercept},
