@@ -115,6 +115,13 @@ class PPOSettings(Strict):
     outputs, so the untrained attacker plays lead intercept and training learns the
     correction (residual policy learning). ``none``: the network's output alone, as in the
     paper. Needs ``game.observation: rich`` and ``game.action_mode: relative``."""
+    team_prior: Literal["none", "straight+pure_pursuit"] = "none"
+    """``straight+pure_pursuit``: the team's policy mean is that scripted team's turn (T toward
+    the terminal, D toward A) plus what its network outputs, so the untrained team flies T home
+    and training learns when not to. ``none``: the network's output alone. Without it, teams
+    trained against attackers that come at T did not fly T home when the attacker stayed away,
+    and lost nearly every game to ``evade_defender`` (docs/results/selfplay-league.md). Needs
+    ``game.observation: rich`` and ``game.action_mode: relative``."""
     attacker_heading_cosines: bool = False
     """The attacker's network also reads two cosines computed from its observation: T's heading
     against T's line to the terminal, D's heading against D's line to A
@@ -364,8 +371,9 @@ class RunConfig(Strict):
         schedule = self.ppo.lr_schedule
         if schedule is not None and (schedule[0][0] != 0 or any(a[0] >= b[0] for a, b in zip(schedule, schedule[1:]))):
             raise ValueError("ppo.lr_schedule must start at 0 env steps and list increasing env steps")
-        if self.ppo.attacker_prior != "none" and (self.game.observation, self.game.action_mode) != ("rich", "relative"):
-            raise ValueError("ppo.attacker_prior needs game.observation: rich and game.action_mode: relative")
+        for key in ("attacker_prior", "team_prior"):
+            if getattr(self.ppo, key) != "none" and (self.game.observation, self.game.action_mode) != ("rich", "relative"):
+                raise ValueError(f"ppo.{key} needs game.observation: rich and game.action_mode: relative")
         if self.ppo.attacker_heading_cosines and self.game.observation != "rich":
             raise ValueError("ppo.attacker_heading_cosines needs game.observation: rich")
         if self.ppo.minibatch_size > self.ppo.train_batch_size:

@@ -90,7 +90,7 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
             "attacker_win_reward": run.ppo.win_reward(reward_method) if side == "attacker" else 0.0,
             "team_reward": run.ppo.team_reward if side == "team" else "own",
             "explore_when_frozen": run.league.frozen_players_explore,  # read by the fast sampler
-            "prior": run.ppo.attacker_prior if side == "attacker" else "none",
+            "prior": run.ppo.attacker_prior if side == "attacker" else run.ppo.team_prior,
             "heading_cosines": run.ppo.attacker_heading_cosines and side == "attacker",
             "game": run.game.model_dump(),
         },

@@ -10,7 +10,9 @@ Every agent's observation arrives with the env's 22-number global state appended
   global state their values differ, and a critic blind to the role can only learn their
   average, which biases both agents' advantages.
   With ``prior: lead_intercept`` (``PPOSettings.attacker_prior``) the actor is a
-  ``ResidualActor``: lead intercept's turn plus the network's output. With
+  ``ResidualActor``: lead intercept's turn plus the network's output; with
+  ``prior: straight+pure_pursuit`` (``PPOSettings.team_prior``) T's turn toward the terminal
+  or D's toward A plus the network's output. With
   ``heading_cosines`` (``PPOSettings.attacker_heading_cosines``) the actor's network reads
   two numbers more, ``HeadingCosines``.
 * ``ScriptedModule``: a scripted player of ``envs.scripted``, reading the global state;
@@ -80,11 +82,20 @@ def mlp(inputs: int, hidden: list[int], outputs: int, last_gain: float, features
     return nn.Sequential(*layers, head)
 
 
+def turn_toward(aim: torch.Tensor, own: torch.Tensor, max_yaw_change: float, max_pitch_change: float) -> torch.Tensor:
+    """The relative action that turns toward ``aim`` (a vector in the agent's yaw frame, from its
+    ``rich`` observation ``own``) as far as the limits allow: ``envs.scripted.direction_to_action``.
+    In that frame the agent's yaw is 0, so the yaw to turn is the aim's azimuth."""
+    pitch = torch.atan2(own[..., 0], own[..., 1])
+    yaw_turn = torch.atan2(aim[..., 1], aim[..., 0])
+    pitch_turn = torch.atan2(aim[..., 2], torch.sqrt(aim[..., 0] ** 2 + aim[..., 1] ** 2)) - pitch
+    return torch.stack((yaw_turn / max_yaw_change, pitch_turn / max_pitch_change), dim=-1).clamp(-1.0, 1.0)
+
+
 class LeadInterceptTurn(nn.Module):
     """Lead intercept's action (``envs.scripted``: fly at the point where T, at its current
-    velocity, is met; turn toward it as far as the limits allow) from the attacker's ``rich``
-    observation alone: T's position relative to A and T's heading, both in A's yaw frame, and
-    A's pitch. In that frame A's yaw is 0, so the yaw to turn is the aim's azimuth."""
+    velocity, is met) from the attacker's ``rich`` observation alone: T's position relative to
+    A and T's heading, both in A's yaw frame, and A's pitch."""
 
     def __init__(self, game: GameConfig):
         super().__init__()
@@ -98,7 +109,6 @@ class LeadInterceptTurn(nn.Module):
 
     def forward(self, own: torch.Tensor) -> torch.Tensor:
         own = own.float()
-        pitch = torch.atan2(own[..., 0], own[..., 1])
         r = own[..., self.t : self.t + 3]  # T - A
         u = own[..., self.t_heading : self.t_heading + 3] * self.v_targeter  # T's velocity
         # envs.geometry.intercept_time: the positive root of |r + u t| = v_A t.
@@ -106,10 +116,25 @@ class LeadInterceptTurn(nn.Module):
         margin = self.v_attacker**2 - (u * u).sum(-1)
         t = (ru + torch.sqrt(ru * ru + margin * (r * r).sum(-1))) / margin
         aim = r + u * t.unsqueeze(-1)
-        yaw_turn = torch.atan2(aim[..., 1], aim[..., 0])
-        pitch_turn = torch.atan2(aim[..., 2], torch.sqrt(aim[..., 0] ** 2 + aim[..., 1] ** 2)) - pitch
-        turn = torch.stack((yaw_turn / self.max_yaw_change, pitch_turn / self.max_pitch_change), dim=-1)
-        return turn.clamp(-1.0, 1.0)
+        return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
+
+
+class StraightPursuitTurn(nn.Module):
+    """The scripted team ``straight`` + ``pure_pursuit`` from T's or D's ``rich`` observation:
+    T turns toward the terminal, D toward A (the first other both see); the role one-hot that
+    ends the observation says which."""
+
+    def __init__(self, game: GameConfig):
+        super().__init__()
+        self.max_yaw_change = game.max_yaw_change
+        self.max_pitch_change = game.max_pitch_change
+        self.terminal, self.a = RICH_TERMINAL, RICH_FIRST_OTHER
+
+    def forward(self, own: torch.Tensor) -> torch.Tensor:
+        own = own.float()
+        targeter = role_of(own)[..., :1] > 0.5
+        aim = torch.where(targeter, own[..., self.terminal : self.terminal + 3], own[..., self.a : self.a + 3])
+        return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
 
 
 class HeadingCosines(nn.Module):
@@ -146,7 +171,8 @@ class ResidualActor(nn.Module):
         return self.prior(own) + self.net(own)
 
 
-PRIORS = {"lead_intercept": LeadInterceptTurn}
+# Named as in the config: ``ppo.attacker_prior``, ``ppo.team_prior``.
+PRIORS = {"lead_intercept": LeadInterceptTurn, "straight+pure_pursuit": StraightPursuitTurn}
 
 
 class ActorCriticModule(TorchRLModule, ValueFunctionAPI):

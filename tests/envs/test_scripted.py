@@ -115,6 +115,17 @@ def test_proportional_navigation_turns_around_for_a_target_behind():
     assert result.outcome[0] == Outcome.CAPTURED
 
 
+def test_the_evading_attacker_wins_only_by_the_time_limit():
+    # It never attacks and D (as fast as A) never catches it: a targeter flying straight gets
+    # through every time; one that hides behind D while A is near runs out of time in some.
+    config, positions = GameConfig(), evaluation_scenarios("default", 300)
+    straight = play(config, scripted_players("evade_defender", "straight", "pure_pursuit"), positions)
+    assert np.all(straight.outcome == Outcome.TERMINAL_REACHED)
+    hiding = play(config, scripted_players("evade_defender", "avoid_attacker", "pure_pursuit"), positions)
+    assert not np.any(hiding.outcome == Outcome.ATTACKER_INTERCEPTED)
+    assert np.sum(hiding.outcome == Outcome.TIMEOUT) > 20
+
+
 @pytest.mark.parametrize("agent, names", sorted(PLAYERS.items()))
 def test_every_scripted_player_gives_valid_actions(agent, names):
     for action_mode in ("relative", "absolute"):

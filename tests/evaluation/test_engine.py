@@ -47,10 +47,10 @@ def assert_same_games(rollout, plain):
 @pytest.mark.parametrize("attacker", sorted(PLAYERS["attacker"]))
 def test_the_rollout_plays_the_fixed_games_as_the_plain_loop(attacker):
     game, positions = GameConfig(), evaluation_scenarios("default", 300)
-    plain = play(game, scripted_players(attacker, "straight", "bisector_intercept"), positions)
+    plain = play(game, scripted_players(attacker, "avoid_attacker", "bisector_intercept"), positions)
     rollout = play_fixed_games(game, positions, {
         "attacker": ("a", ScriptedOnState(attacker)),
-        "targeter": ("t", ScriptedOnState("straight")),
+        "targeter": ("t", ScriptedOnState("avoid_attacker")),
         "defender": ("d", ScriptedOnState("bisector_intercept")),
     })
     assert_same_games(rollout, plain)

@@ -1,12 +1,12 @@
-"""The attacker's lead-intercept prior (``ppo.attacker_prior``): with a network that outputs
-nothing, the policy's mean is exactly the scripted lead intercept's action."""
+"""The priors (``ppo.attacker_prior``, ``ppo.team_prior``): with a network that outputs
+nothing, the policy's mean is exactly the scripted player's action."""
 
 import numpy as np
 import onnxruntime
 import pytest
 import torch
 
-from envs.agents import ATTACKER
+from envs.agents import ATTACKER, DEFENDER, TARGETER
 from envs.core import BatchedGame
 from envs.observations import global_state, observe, policy_input
 from envs.scripted import ScriptedPlayer
@@ -19,29 +19,45 @@ def attacker_with_prior(run):
     return learner_spec(run, "attacker", reward_method=2).build()
 
 
-def test_an_attacker_with_the_prior_and_a_silent_network_plays_lead_intercept():
-    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept"])
-    module = attacker_with_prior(run)
+def silence(module):
     head = module.pi.net[-1]
     torch.nn.init.zeros_(head.weight)
     torch.nn.init.zeros_(head.bias)
+    return module
 
+
+def turned_anywhere(run):
     rng = np.random.default_rng(0)
     game = BatchedGame(run.game, 4096)
     game.reset(rng)
     # Turned anywhere, not only as the games start: yaw all round, pitch within its limits.
     game.headings[:] = np.stack((rng.uniform(0, 2 * np.pi, (4096, 3)), rng.uniform(-1.2, 1.2, (4096, 3))), axis=-1)
-    time_left = np.ones(4096)
-    obs = policy_input(observe(run.game, game.positions, game.headings, time_left, agents=[ATTACKER])[0],
+    return game
+
+
+def assert_plays(module, run, game, agent, name):
+    time_left = np.ones(game.num_games)
+    obs = policy_input(observe(run.game, game.positions, game.headings, time_left, agents=[agent])[0],
                        global_state(run.game, game.positions, game.headings, time_left))
-    expected = ScriptedPlayer("attacker", "lead_intercept").act(game)
+    expected = ScriptedPlayer(("attacker", "targeter", "defender")[agent], name).act(game)
     with torch.no_grad():
         actual = module.deterministic_action(torch.from_numpy(obs)).numpy()
-
     # The observation is float32: positions of order 10 carry ~1e-6 rounding, and the turn
     # divides angles by limits of order 1, so 1e-4 is ample (the largest difference is ~2e-6).
     np.testing.assert_allclose(actual, expected, atol=1e-4)
     assert (np.abs(expected) < 1).mean() > 0.4 and np.abs(expected).max() == 1.0  # turns both within and at the limits
+
+
+def test_an_attacker_with_the_prior_and_a_silent_network_plays_lead_intercept():
+    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept"])
+    assert_plays(silence(attacker_with_prior(run)), run, turned_anywhere(run), ATTACKER, "lead_intercept")
+
+
+def test_a_team_with_the_prior_and_a_silent_network_flies_t_home_and_d_at_a():
+    run = load_config("selfplay_league", ["ppo.team_prior=straight+pure_pursuit"])
+    team, game = silence(learner_spec(run, "team").build()), turned_anywhere(run)
+    assert_plays(team, run, game, TARGETER, "straight")
+    assert_plays(team, run, game, DEFENDER, "pure_pursuit")
 
 
 @pytest.mark.parametrize("fmt", ["export", "torchscript", "onnx"])
