@@ -128,11 +128,12 @@ class StraightPursuitTurn(nn.Module):
         super().__init__()
         self.max_yaw_change = game.max_yaw_change
         self.max_pitch_change = game.max_pitch_change
-        self.terminal, self.a = RICH_TERMINAL, RICH_FIRST_OTHER
+        # Block starts as attributes: TorchScript does not read module-level ints in forward.
+        self.terminal, self.a, self.targeter_flag = RICH_TERMINAL, RICH_FIRST_OTHER, -ROLE_SIZE
 
     def forward(self, own: torch.Tensor) -> torch.Tensor:
         own = own.float()
-        targeter = role_of(own)[..., :1] > 0.5
+        targeter = own[..., self.targeter_flag].unsqueeze(-1) > 0.5  # the role one-hot (targeter, defender)
         aim = torch.where(targeter, own[..., self.terminal : self.terminal + 3], own[..., self.a : self.a + 3])
         return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
 

@@ -52,6 +52,7 @@ def write(tmp_path, text):
         ("name: x\nppo: {lr_schedule: [[100, 0.001]]}\n", "lr_schedule"),
         ("name: x\nppo: {attacker_prior: lead_intercept}\ngame: {observation: paper}\n", "attacker_prior"),
         ("name: x\nppo: {attacker_prior: pure_pursuit}\n", "ppo.attacker_prior"),
+        ("name: x\nppo: {team_prior: straight+pure_pursuit}\ngame: {action_mode: absolute}\n", "team_prior"),
         ("name: x\nppo: {attacker_heading_cosines: true}\ngame: {observation: paper}\n", "attacker_heading_cosines"),
         ("name: x\nppo: {lr_schedule: [[0, 0.001], [0, 0.0001]]}\n", "lr_schedule"),
     ],

@@ -61,14 +61,17 @@ def test_a_team_with_the_prior_and_a_silent_network_flies_t_home_and_d_at_a():
 
 
 @pytest.mark.parametrize("fmt", ["export", "torchscript", "onnx"])
-def test_the_prior_and_the_heading_cosines_travel_in_every_export_format(tmp_path, fmt):
-    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept", "ppo.attacker_heading_cosines=true"])
-    module = attacker_with_prior(run)
+@pytest.mark.parametrize("side", ["attacker", "team"])
+def test_the_priors_and_the_heading_cosines_travel_in_every_export_format(tmp_path, fmt, side):
+    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept", "ppo.attacker_heading_cosines=true",
+                                          "ppo.team_prior=straight+pure_pursuit"])
+    module = learner_spec(run, side, reward_method=2 if side == "attacker" else None).build()
     rng = np.random.default_rng(1)
     game = BatchedGame(run.game, 256)
     game.reset(rng)
-    obs = observe(run.game, game.positions, game.headings, np.ones(256), agents=[ATTACKER])[0]
-    out = tmp_path / f"attacker.{fmt}"
+    agents = [ATTACKER] if side == "attacker" else [TARGETER, DEFENDER]
+    obs = np.concatenate(observe(run.game, game.positions, game.headings, np.ones(256), agents=agents))
+    out = tmp_path / f"{side}.{fmt}"
     export(ExportedPolicy(module.pi, module.actor_inputs).eval(), {"observation": {"size": obs.shape[1]}}, fmt, out)
     if fmt == "onnx":
         actions = onnxruntime.InferenceSession(str(out)).run(None, {"observation": obs})[0]
