@@ -76,7 +76,8 @@ def test_training_stored_a_point_per_multiple_with_the_reference_rows(tiny_run):
         untrained = [name for kind, name, _ in curve.references if kind == "untrained"]
         assert untrained == [f"{learner}-v0"]
         if curve.learner.side == "attacker":
-            assert scripted == ["scripted-lead_intercept", "scripted-proportional_navigation", "scripted-pure_pursuit"]
+            assert scripted == ["scripted-evade_defender", "scripted-lead_intercept", "scripted-proportional_navigation",
+                                "scripted-pure_pursuit"]
         else:
             assert len(scripted) == 4
     # A stored reference is what those players do on the same fixed games now.
