@@ -115,7 +115,7 @@ class PPOSettings(Strict):
     outputs, so the untrained attacker plays lead intercept and training learns the
     correction (residual policy learning). ``none``: the network's output alone, as in the
     paper. Needs ``game.observation: rich`` and ``game.action_mode: relative``."""
-    team_prior: Literal["none", "straight+pure_pursuit"] = "none"
+    team_prior: Literal["none", "straight+pure_pursuit", "avoid_attacker+pure_pursuit"] = "none"
     """``straight+pure_pursuit``: the team's policy mean is that scripted team's turn (T toward
     the terminal, D toward A) plus what its network outputs, so the untrained team flies T home
     and training learns when not to. ``none``: the network's output alone. Without it, teams

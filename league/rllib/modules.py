@@ -38,7 +38,7 @@ from envs.observations import (
     role_of,
     split_policy_input,
 )
-from envs.scripted import act_from_state
+from envs.scripted import SHELTER_DISTANCE, act_from_state
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.core.rl_module.torch import TorchRLModule
@@ -138,6 +138,39 @@ class StraightPursuitTurn(nn.Module):
         return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
 
 
+class AvoidPursuitTurn(nn.Module):
+    """The scripted team ``avoid_attacker`` + ``pure_pursuit`` (the paper's) from T's or D's
+    ``rich`` observation: T turns toward the terminal while it is safe (``envs.scripted.
+    targeter_is_safe``: it reaches the terminal sphere before A can come within its capture
+    radius), else toward a point behind D as seen from A; D turns toward A."""
+
+    def __init__(self, game: GameConfig):
+        super().__init__()
+        scale = game.position_scale  # lengths in the observation are divided by it
+        self.v_targeter, self.v_attacker = game.v_targeter / scale, game.v_attacker / scale
+        self.capture_radius, self.terminal_radius = game.attacker_radius / scale, game.terminal_sphere_radius / scale
+        self.shelter_distance = SHELTER_DISTANCE / scale
+        self.max_yaw_change, self.max_pitch_change = game.max_yaw_change, game.max_pitch_change
+        # Block starts as attributes: TorchScript does not read module-level ints in forward.
+        self.a, self.d, self.terminal, self.targeter_flag = RICH_FIRST_OTHER, RICH_SECOND_OTHER, RICH_TERMINAL, -ROLE_SIZE
+
+    def forward(self, own: torch.Tensor) -> torch.Tensor:
+        own = own.float()
+        a, d = own[..., self.a : self.a + 3], own[..., self.d : self.d + 3]  # T's view: A first, then D
+        e = own[..., self.terminal : self.terminal + 3]  # the terminal, relative to T
+        to_terminal = torch.linalg.vector_norm(e, dim=-1)
+        goal = e * (1 - self.terminal_radius / to_terminal.clamp_min(self.terminal_radius)).unsqueeze(-1)
+        margin = (self.v_targeter * (torch.linalg.vector_norm(goal - a, dim=-1) - self.capture_radius)
+                  - self.v_attacker * torch.linalg.vector_norm(goal, dim=-1))
+        safe = (to_terminal <= self.terminal_radius) | (margin > 0)
+        away = d - a
+        shelter = d + self.shelter_distance * away / torch.linalg.vector_norm(away, dim=-1, keepdim=True).clamp_min(1e-12)
+        targeter_aim = torch.where(safe.unsqueeze(-1), e, shelter)
+        targeter = own[..., self.targeter_flag].unsqueeze(-1) > 0.5  # the role one-hot (targeter, defender)
+        aim = torch.where(targeter, targeter_aim, a)  # D sees A first too
+        return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
+
+
 class HeadingCosines(nn.Module):
     """The attacker's ``rich`` observation with two numbers appended: the cosine between T's
     heading and T's line to the terminal, and between D's heading and D's line to A. They tell
@@ -173,7 +206,11 @@ class ResidualActor(nn.Module):
 
 
 # Named as in the config: ``ppo.attacker_prior``, ``ppo.team_prior``.
-PRIORS = {"lead_intercept": LeadInterceptTurn, "straight+pure_pursuit": StraightPursuitTurn}
+PRIORS = {
+    "lead_intercept": LeadInterceptTurn,
+    "straight+pure_pursuit": StraightPursuitTurn,
+    "avoid_attacker+pure_pursuit": AvoidPursuitTurn,
+}
 
 
 class ActorCriticModule(TorchRLModule, ValueFunctionAPI):

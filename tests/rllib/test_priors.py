@@ -9,7 +9,7 @@ import torch
 from envs.agents import ATTACKER, DEFENDER, TARGETER
 from envs.core import BatchedGame
 from envs.observations import global_state, observe, policy_input
-from envs.scripted import ScriptedPlayer
+from envs.scripted import ScriptedPlayer, targeter_is_safe
 from league.config import load_config
 from league.evaluation.export import ExportedPolicy, export
 from league.rllib.bridge import learner_spec
@@ -60,11 +60,19 @@ def test_a_team_with_the_prior_and_a_silent_network_flies_t_home_and_d_at_a():
     assert_plays(team, run, game, DEFENDER, "pure_pursuit")
 
 
+def test_a_team_with_the_avoiding_prior_and_a_silent_network_plays_the_papers_team():
+    run = load_config("selfplay_league", ["ppo.team_prior=avoid_attacker+pure_pursuit"])
+    team, game = silence(learner_spec(run, "team").build()), turned_anywhere(run)
+    assert 0.05 < targeter_is_safe(game).mean() < 0.95  # T flies home in some games and hides in others
+    assert_plays(team, run, game, TARGETER, "avoid_attacker")
+    assert_plays(team, run, game, DEFENDER, "pure_pursuit")
+
+
 @pytest.mark.parametrize("fmt", ["export", "torchscript", "onnx"])
 @pytest.mark.parametrize("side", ["attacker", "team"])
 def test_the_priors_and_the_heading_cosines_travel_in_every_export_format(tmp_path, fmt, side):
     run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept", "ppo.attacker_heading_cosines=true",
-                                          "ppo.team_prior=straight+pure_pursuit"])
+                                          "ppo.team_prior=avoid_attacker+pure_pursuit"])
     module = learner_spec(run, side, reward_method=2 if side == "attacker" else None).build()
     rng = np.random.default_rng(1)
     game = BatchedGame(run.game, 256)
