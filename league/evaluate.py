@@ -1,4 +1,4 @@
-"""Evaluate a league: ``python -m league.evaluate --run-dir DIR [--episodes N] [--players ...]``.
+"""Evaluate a league: ``python -m league.evaluate --run-dir DIR [--episodes N] [--players ...] [--add-scripted ...]``.
 
 Plays every chosen attacker against every chosen team on the fixed evaluation games
 (frozen players only: snapshots, exploiter snapshots and scripted players), prints win
@@ -7,6 +7,11 @@ equilibrium of the meta-game on these results (``league.analysis.nash``). Result
 the league database as evaluation results of the run's last iteration, replacing earlier
 evaluations of the same pairs (the same fixed games again are one measurement, not new
 evidence), and the ratings of that iteration are refitted with them.
+
+``--add-scripted`` first makes scripted players the run's config did not list members of the
+league (an attacker by name, ``evade_defender``; a team as ``targeter+defender``), so an old
+league can be measured against a new reference player: they join its meta-game, its
+reports, and the pool of a resumed run, as if the config had listed them.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ from league.evaluation.tables import format_table, method_table
 from league.analysis.nash import format_meta_game, meta_game, meta_game_players
 from league.analysis.statistics import wilson_interval
 from league.cli import command_parser, count
+from envs.scripted import PLAYERS
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
 
@@ -40,6 +46,31 @@ def evaluation_json(scenario: str, episodes: int, results: list[PairEvaluation],
             "outcomes": dict(r.result.outcome_counts()),
         })
     return {"scenario": scenario, "episodes": episodes, "pairs": pairs, "meta_game": meta.as_json() if meta else None}
+
+
+def scripted_columns(name: str) -> dict[str, Any]:
+    """The league-member columns of a scripted player named ``attacker`` or ``targeter+defender``."""
+    if "+" in name:
+        targeter, _, defender = name.partition("+")
+        for agent, player in (("targeter", targeter), ("defender", defender)):
+            if player not in PLAYERS[agent]:
+                raise ValueError(f"--add-scripted {name}: unknown scripted {agent} {player!r}; expected one of {sorted(PLAYERS[agent])}")
+        return dict(side="team", kind="scripted", version=0, scripted_targeter=targeter, scripted_defender=defender)
+    if name not in PLAYERS["attacker"]:
+        raise ValueError(f"--add-scripted {name}: unknown scripted attacker; expected one of {sorted(PLAYERS['attacker'])}, "
+                         "or a team as targeter+defender")
+    return dict(side="attacker", kind="scripted", version=0, scripted_attacker=name)
+
+
+def add_scripted(store, names: list[str]) -> list[str]:
+    """Make the named scripted players league members (those not yet in it); their names."""
+    columns = [scripted_columns(name) for name in names]  # every name checked before anything is written
+    members = {p.name for p in store.players()}
+    with store.transaction():
+        for c in columns:
+            if Player(id=-1, **c).name not in members:
+                store.add_player(last_iteration(store), **c)
+    return [Player(id=-1, **c).name for c in columns]
 
 
 def choose(players: list[Player], names: list[str] | None) -> list[Player]:
@@ -61,11 +92,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--workers", type=count(0), help="evaluation actors, 0: in this process (default: the run's evaluation.workers)"
     )
+    parser.add_argument("--add-scripted", nargs="+", default=[], metavar="NAME",
+                        help="scripted players to make league members first: an attacker, or a team as targeter+defender")
     parser.add_argument("--json", action="store_true", help="print the same numbers as one JSON object")
     args = parser.parse_args(argv)
     try:
         run, store = open_run(args.run_dir)
-        players = choose(store.players(), args.players)
+        added = add_scripted(store, args.add_scripted)
+        players = choose(store.players(), args.players and [*args.players, *(n for n in added if n not in args.players)])
     except (RunDirError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -1,0 +1,37 @@
+"""``league.evaluate --add-scripted``: measuring an old league against a new scripted player."""
+
+from league.evaluate import main
+from league.state.run_dir import open_run
+
+
+def members(run_dir):
+    _, store = open_run(run_dir)
+    try:
+        return [p.name for p in store.players()]
+    finally:
+        store.close()
+
+
+def test_a_scripted_player_joins_an_old_league_and_is_evaluated(run_copy, capsys):
+    before = members(run_copy)
+    assert "scripted-evade_defender" not in before
+
+    # A bad name is refused before anything is written, naming it.
+    assert main(["--run-dir", str(run_copy), "--workers", "0", "--add-scripted", "evade_defender", "straight+teleport"]) == 2
+    assert "straight+teleport" in capsys.readouterr().err
+    assert members(run_copy) == before
+
+    args = ["--run-dir", str(run_copy), "--workers", "0", "--episodes", "8", "--players", "team-v1",
+            "--add-scripted", "evade_defender", "straight+bisector_intercept"]
+    assert main(args) == 0
+    assert "| scripted-evade_defender | team-v1 | 8 |" in capsys.readouterr().out
+    assert main(args) == 0  # a member already: not added twice
+    assert members(run_copy) == before + ["scripted-evade_defender", "scripted-straight+bisector_intercept"]
+
+    _, store = open_run(run_copy)
+    try:
+        evade = next(p for p in store.players() if p.name == "scripted-evade_defender")
+        games = sum(r.count for r in store.newest_evaluation_rows() if r.attacker == evade.id)
+    finally:
+        store.close()
+    assert games == 16  # against the chosen team and the added one; the second evaluation replaced the first
