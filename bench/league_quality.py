@@ -59,16 +59,18 @@ def arm_overrides(arm: str, args: argparse.Namespace, seed: int) -> list[str]:
     common = [
         "game.attacker_reward=2", f"game.terminal_reward={args.terminal_reward}", "league.attacker_reward_methods=[2]",
         f"evaluation.episodes={args.episodes}", f"seed={seed}",
+        # The arms' exploiters train beside their learners (or not at all), not in a final phase.
+        "league.exploiter_phases=all",
     ]
     per_side = args.phases // 2 * args.phase_env_steps
     if arm == "protocol":
         phases = [f"{{learner: attacker, env_steps: {per_side}, opponents: scripted}}",
                   f"{{learner: team, env_steps: {per_side}, opponents: latest}}"]
-        return [*common, "league.mode=protocol", f"league.phases=[{', '.join(phases)}]"]
+        return [*common, "league.mode=protocol", "league.exploiters=[]", f"league.phases=[{', '.join(phases)}]"]
     if arm == "naive":
         phases = [f"{{learner: {'attacker' if i % 2 == 0 else 'team'}, env_steps: {args.phase_env_steps}, "
                   f"opponents: {'scripted' if i == 0 else 'latest'}}}" for i in range(args.phases)]
-        return [*common, "league.mode=protocol", f"league.phases=[{', '.join(phases)}]"]
+        return [*common, "league.mode=protocol", "league.exploiters=[]", f"league.phases=[{', '.join(phases)}]"]
     exploiters = arm == "league-exploiters"
     return [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
             f"league.phase_env_steps={args.phase_env_steps // 2 if exploiters else args.phase_env_steps}",

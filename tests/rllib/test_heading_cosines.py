@@ -45,7 +45,7 @@ def test_only_the_attackers_network_reads_them():
     team = learner_spec(run, "team").build()
     net = attacker.pi.net  # lead intercept's prior plus this network
     assert isinstance(net[0], HeadingCosines) and net[1].in_features == attacker.actor_inputs + 2
-    assert not any(isinstance(layer, HeadingCosines) for layer in team.pi)
+    assert not any(isinstance(layer, HeadingCosines) for layer in team.pi.modules())
 
     # A straight-flying T and one flying off: the same observation but for T's heading.
     obs = torch.zeros(2, attacker.observation_space.shape[0])
