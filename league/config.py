@@ -116,11 +116,13 @@ class PPOSettings(Strict):
     correction (residual policy learning). ``none``: the network's output alone, as in the
     paper. Needs ``game.observation: rich`` and ``game.action_mode: relative``."""
     team_prior: Literal["none", "straight+pure_pursuit", "avoid_attacker+pure_pursuit"] = "none"
-    """``straight+pure_pursuit``: the team's policy mean is that scripted team's turn (T toward
-    the terminal, D toward A) plus what its network outputs, so the untrained team flies T home
-    and training learns when not to. ``none``: the network's output alone. Without it, teams
-    trained against attackers that come at T did not fly T home when the attacker stayed away,
-    and lost nearly every game to ``evade_defender`` (docs/results/selfplay-league.md). Needs
+    """A scripted team (``envs.scripted``) whose turn, computed from T's or D's own observation,
+    is the team's policy mean plus what its network outputs, so the untrained team plays it and
+    training learns the correction: ``avoid_attacker+pure_pursuit`` (the paper's team: T flies
+    home while it is safe from A, else hides behind D; D flies at A) or ``straight+pure_pursuit``
+    (T always flies home). ``none``: the network's output alone. Without a prior, teams trained
+    against attackers that come at T did not fly T home when the attacker stayed away, and lost
+    nearly every game to ``evade_defender`` (docs/results/selfplay-league.md). Needs
     ``game.observation: rich`` and ``game.action_mode: relative``."""
     attacker_heading_cosines: bool = False
     """The attacker's network also reads two cosines computed from its observation: T's heading

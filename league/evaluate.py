@@ -24,15 +24,16 @@ from pathlib import Path
 
 import torch
 
+from envs.scripted import PLAYERS
 from league.evaluation.engine import PairEvaluation, evaluate_pairs
 from league.evaluation.results import last_iteration, record_evaluations
 from league.evaluation.tables import format_table, method_table
 from league.analysis.nash import format_meta_game, meta_game, meta_game_players
 from league.analysis.statistics import wilson_interval
 from league.cli import command_parser, count
-from envs.scripted import PLAYERS
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
+from league.state.store import LeagueStore
 
 
 def evaluation_json(scenario: str, episodes: int, results: list[PairEvaluation], meta: Any) -> dict:
@@ -62,7 +63,7 @@ def scripted_columns(name: str) -> dict[str, Any]:
     return dict(side="attacker", kind="scripted", version=0, scripted_attacker=name)
 
 
-def add_scripted(store, names: list[str]) -> list[str]:
+def add_scripted(store: LeagueStore, names: list[str]) -> list[str]:
     """Make the named scripted players league members (those not yet in it); their names."""
     columns = [scripted_columns(name) for name in names]  # every name checked before anything is written
     members = {p.name for p in store.players()}

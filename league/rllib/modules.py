@@ -10,9 +10,9 @@ Every agent's observation arrives with the env's 22-number global state appended
   global state their values differ, and a critic blind to the role can only learn their
   average, which biases both agents' advantages.
   With ``prior: lead_intercept`` (``PPOSettings.attacker_prior``) the actor is a
-  ``ResidualActor``: lead intercept's turn plus the network's output; with
-  ``prior: straight+pure_pursuit`` (``PPOSettings.team_prior``) T's turn toward the terminal
-  or D's toward A plus the network's output. With
+  ``ResidualActor``: lead intercept's turn plus the network's output; with a scripted team as
+  ``prior`` (``PPOSettings.team_prior``), that team's turn for T or D plus the network's
+  output (``AvoidPursuitTurn``, ``StraightPursuitTurn``). With
   ``heading_cosines`` (``PPOSettings.attacker_heading_cosines``) the actor's network reads
   two numbers more, ``HeadingCosines``.
 * ``ScriptedModule``: a scripted player of ``envs.scripted``, reading the global state;
