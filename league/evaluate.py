@@ -24,7 +24,7 @@ from pathlib import Path
 
 import torch
 
-from envs.scripted import PLAYERS
+from envs.scripted import ScriptedPlayer
 from league.evaluation.engine import PairEvaluation, evaluate_pairs
 from league.evaluation.results import last_iteration, record_evaluations
 from league.evaluation.tables import format_table, method_table
@@ -51,15 +51,16 @@ def evaluation_json(scenario: str, episodes: int, results: list[PairEvaluation],
 
 def scripted_columns(name: str) -> dict[str, Any]:
     """The league-member columns of a scripted player named ``attacker`` or ``targeter+defender``."""
-    if "+" in name:
-        targeter, _, defender = name.partition("+")
-        for agent, player in (("targeter", targeter), ("defender", defender)):
-            if player not in PLAYERS[agent]:
-                raise ValueError(f"--add-scripted {name}: unknown scripted {agent} {player!r}; expected one of {sorted(PLAYERS[agent])}")
+    targeter, team, defender = name.partition("+")
+    try:  # ScriptedPlayer names the unknown player and the known ones
+        if team:
+            ScriptedPlayer("targeter", targeter), ScriptedPlayer("defender", defender)
+        else:
+            ScriptedPlayer("attacker", name)
+    except ValueError as err:
+        raise ValueError(f"--add-scripted {name}: {err} (a team: targeter+defender)") from None
+    if team:
         return dict(side="team", kind="scripted", version=0, scripted_targeter=targeter, scripted_defender=defender)
-    if name not in PLAYERS["attacker"]:
-        raise ValueError(f"--add-scripted {name}: unknown scripted attacker; expected one of {sorted(PLAYERS['attacker'])}, "
-                         "or a team as targeter+defender")
     return dict(side="attacker", kind="scripted", version=0, scripted_attacker=name)
 
 
@@ -67,11 +68,12 @@ def add_scripted(store: LeagueStore, names: list[str]) -> list[str]:
     """Make the named scripted players league members (those not yet in it); their names."""
     columns = [scripted_columns(name) for name in names]  # every name checked before anything is written
     members = {p.name for p in store.players()}
+    added = [Player(id=-1, **c) for c in columns]
     with store.transaction():
-        for c in columns:
-            if Player(id=-1, **c).name not in members:
+        for player, c in zip(added, columns):
+            if player.name not in members:
                 store.add_player(last_iteration(store), **c)
-    return [Player(id=-1, **c).name for c in columns]
+    return [p.name for p in added]
 
 
 def choose(players: list[Player], names: list[str] | None) -> list[Player]:
@@ -100,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         run, store = open_run(args.run_dir)
         added = add_scripted(store, args.add_scripted)
-        players = choose(store.players(), args.players and [*args.players, *(n for n in added if n not in args.players)])
+        players = choose(store.players(), args.players and list(dict.fromkeys([*args.players, *added])))
     except (RunDirError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

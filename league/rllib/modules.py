@@ -12,7 +12,7 @@ Every agent's observation arrives with the env's 22-number global state appended
   With ``prior: lead_intercept`` (``PPOSettings.attacker_prior``) the actor is a
   ``ResidualActor``: lead intercept's turn plus the network's output; with a scripted team as
   ``prior`` (``PPOSettings.team_prior``), that team's turn for T or D plus the network's
-  output (``AvoidPursuitTurn``, ``StraightPursuitTurn``). With
+  output (``ScriptedTeamTurn``). With
   ``heading_cosines`` (``PPOSettings.attacker_heading_cosines``) the actor's network reads
   two numbers more, ``HeadingCosines``.
 * ``ScriptedModule``: a scripted player of ``envs.scripted``, reading the global state;
@@ -22,6 +22,7 @@ Every agent's observation arrives with the env's 22-number global state appended
 from __future__ import annotations
 
 import logging
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -119,33 +120,16 @@ class LeadInterceptTurn(nn.Module):
         return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
 
 
-class StraightPursuitTurn(nn.Module):
-    """The scripted team ``straight`` + ``pure_pursuit`` from T's or D's ``rich`` observation:
-    T turns toward the terminal, D toward A (the first other both see); the role one-hot that
-    ends the observation says which."""
+class ScriptedTeamTurn(nn.Module):
+    """A scripted team's action from T's or D's ``rich`` observation (the role one-hot that ends
+    it says which): D turns toward A (``pure_pursuit``); T toward the terminal (``straight``),
+    or, with ``avoid``, only while it is safe (``avoid_attacker``: ``envs.scripted.
+    targeter_is_safe``, it reaches the terminal sphere before A can come within its capture
+    radius), else toward a point behind D as seen from A."""
 
-    def __init__(self, game: GameConfig):
+    def __init__(self, game: GameConfig, avoid: bool):
         super().__init__()
-        self.max_yaw_change = game.max_yaw_change
-        self.max_pitch_change = game.max_pitch_change
-        # Block starts as attributes: TorchScript does not read module-level ints in forward.
-        self.terminal, self.a, self.targeter_flag = RICH_TERMINAL, RICH_FIRST_OTHER, -ROLE_SIZE
-
-    def forward(self, own: torch.Tensor) -> torch.Tensor:
-        own = own.float()
-        targeter = own[..., self.targeter_flag].unsqueeze(-1) > 0.5  # the role one-hot (targeter, defender)
-        aim = torch.where(targeter, own[..., self.terminal : self.terminal + 3], own[..., self.a : self.a + 3])
-        return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
-
-
-class AvoidPursuitTurn(nn.Module):
-    """The scripted team ``avoid_attacker`` + ``pure_pursuit`` (the paper's) from T's or D's
-    ``rich`` observation: T turns toward the terminal while it is safe (``envs.scripted.
-    targeter_is_safe``: it reaches the terminal sphere before A can come within its capture
-    radius), else toward a point behind D as seen from A; D turns toward A."""
-
-    def __init__(self, game: GameConfig):
-        super().__init__()
+        self.avoid = avoid
         scale = game.position_scale  # lengths in the observation are divided by it
         self.v_targeter, self.v_attacker = game.v_targeter / scale, game.v_attacker / scale
         self.capture_radius, self.terminal_radius = game.attacker_radius / scale, game.terminal_sphere_radius / scale
@@ -158,14 +142,16 @@ class AvoidPursuitTurn(nn.Module):
         own = own.float()
         a, d = own[..., self.a : self.a + 3], own[..., self.d : self.d + 3]  # T's view: A first, then D
         e = own[..., self.terminal : self.terminal + 3]  # the terminal, relative to T
-        to_terminal = torch.linalg.vector_norm(e, dim=-1)
-        goal = e * (1 - self.terminal_radius / to_terminal.clamp_min(self.terminal_radius)).unsqueeze(-1)
-        margin = (self.v_targeter * (torch.linalg.vector_norm(goal - a, dim=-1) - self.capture_radius)
-                  - self.v_attacker * torch.linalg.vector_norm(goal, dim=-1))
-        safe = (to_terminal <= self.terminal_radius) | (margin > 0)
-        away = d - a
-        shelter = d + self.shelter_distance * away / torch.linalg.vector_norm(away, dim=-1, keepdim=True).clamp_min(1e-12)
-        targeter_aim = torch.where(safe.unsqueeze(-1), e, shelter)
+        targeter_aim = e
+        if self.avoid:
+            to_terminal = torch.linalg.vector_norm(e, dim=-1)
+            goal = e * (1 - self.terminal_radius / to_terminal.clamp_min(self.terminal_radius)).unsqueeze(-1)
+            margin = (self.v_targeter * (torch.linalg.vector_norm(goal - a, dim=-1) - self.capture_radius)
+                      - self.v_attacker * torch.linalg.vector_norm(goal, dim=-1))
+            safe = (to_terminal <= self.terminal_radius) | (margin > 0)
+            away = d - a
+            shelter = d + self.shelter_distance * away / torch.linalg.vector_norm(away, dim=-1, keepdim=True).clamp_min(1e-12)
+            targeter_aim = torch.where(safe.unsqueeze(-1), e, shelter)
         targeter = own[..., self.targeter_flag].unsqueeze(-1) > 0.5  # the role one-hot (targeter, defender)
         aim = torch.where(targeter, targeter_aim, a)  # D sees A first too
         return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
@@ -208,8 +194,8 @@ class ResidualActor(nn.Module):
 # Named as in the config: ``ppo.attacker_prior``, ``ppo.team_prior``.
 PRIORS = {
     "lead_intercept": LeadInterceptTurn,
-    "straight+pure_pursuit": StraightPursuitTurn,
-    "avoid_attacker+pure_pursuit": AvoidPursuitTurn,
+    "straight+pure_pursuit": partial(ScriptedTeamTurn, avoid=False),
+    "avoid_attacker+pure_pursuit": partial(ScriptedTeamTurn, avoid=True),
 }
 
 
