@@ -17,6 +17,8 @@ decoded from their global states) to the direction it wants to fly, ``(N, 3)``;
 | targeter | ``avoid_attacker``        | fly at the terminal if T gets into the terminal sphere     |
 |          |                           | before A can get within its capture radius of T (the       |
 |          |                           | Apollonius ball with both radii), else hide behind D       |
+| targeter | ``avoid_oncoming_attacker`` | as ``avoid_attacker``, and fly at the terminal also while |
+|          |                           | A's velocity has no component toward T (A is not coming)   |
 | defender | ``pure_pursuit``          | fly at A                                                   |
 | defender | ``bisector_intercept``    | fly to where A's straight path to T crosses the bisector   |
 |          |                           | plane of A and D (D gets there no later than A)            |
@@ -129,6 +131,14 @@ def targeter_avoid_attacker(game: GameView) -> np.ndarray:
     return np.where(targeter_is_safe(game)[:, None], -t, shelter - t)
 
 
+def targeter_avoid_oncoming_attacker(game: GameView) -> np.ndarray:
+    # An attacker that flies away (evade_defender, playing for time) is not a threat: hiding
+    # from it behind a D that chases it draws T away from the terminal until time runs out.
+    a, t = game.positions[:, ATTACKER], game.positions[:, TARGETER]
+    oncoming = np.sum((t - a) * _velocities(game)[:, ATTACKER], axis=1) > 0
+    return np.where(oncoming[:, None], targeter_avoid_attacker(game), -t)
+
+
 def defender_pure_pursuit(game: GameView) -> np.ndarray:
     return game.positions[:, ATTACKER] - game.positions[:, DEFENDER]
 
@@ -153,7 +163,11 @@ PLAYERS: dict[str, dict[str, Direction]] = {
         "proportional_navigation": attacker_proportional_navigation,
         "evade_defender": attacker_evade_defender,
     },
-    "targeter": {"straight": targeter_straight, "avoid_attacker": targeter_avoid_attacker},
+    "targeter": {
+        "straight": targeter_straight,
+        "avoid_attacker": targeter_avoid_attacker,
+        "avoid_oncoming_attacker": targeter_avoid_oncoming_attacker,
+    },
     "defender": {"pure_pursuit": defender_pure_pursuit, "bisector_intercept": defender_bisector_intercept},
 }
 # The paper's training opponents of the attacker (section 5).

@@ -115,12 +115,14 @@ class PPOSettings(Strict):
     outputs, so the untrained attacker plays lead intercept and training learns the
     correction (residual policy learning). ``none``: the network's output alone, as in the
     paper. Needs ``game.observation: rich`` and ``game.action_mode: relative``."""
-    team_prior: Literal["none", "straight+pure_pursuit", "avoid_attacker+pure_pursuit"] = "none"
+    team_prior: Literal["none", "straight+pure_pursuit", "avoid_attacker+pure_pursuit",
+                        "avoid_oncoming_attacker+pure_pursuit"] = "none"
     """A scripted team (``envs.scripted``) whose turn, computed from T's or D's own observation,
     is the team's policy mean plus what its network outputs, so the untrained team plays it and
     training learns the correction: ``avoid_attacker+pure_pursuit`` (the paper's team: T flies
-    home while it is safe from A, else hides behind D; D flies at A) or ``straight+pure_pursuit``
-    (T always flies home). ``none``: the network's output alone. Without a prior, teams trained
+    home while it is safe from A, else hides behind D; D flies at A),
+    ``avoid_oncoming_attacker+pure_pursuit`` (T hides only while A flies toward it) or
+    ``straight+pure_pursuit`` (T always flies home). ``none``: the network's output alone. Without a prior, teams trained
     against attackers that come at T did not fly T home when the attacker stayed away, and lost
     nearly every game to ``evade_defender`` (docs/results/selfplay-league.md). Needs
     ``game.observation: rich`` and ``game.action_mode: relative``."""

@@ -123,13 +123,14 @@ class LeadInterceptTurn(nn.Module):
 class ScriptedTeamTurn(nn.Module):
     """A scripted team's action from T's or D's ``rich`` observation (the role one-hot that ends
     it says which): D turns toward A (``pure_pursuit``); T toward the terminal (``straight``),
-    or, with ``avoid``, only while it is safe (``avoid_attacker``: ``envs.scripted.
-    targeter_is_safe``, it reaches the terminal sphere before A can come within its capture
-    radius), else toward a point behind D as seen from A."""
+    or only while it is safe (``avoid_attacker``: ``envs.scripted.targeter_is_safe``, it
+    reaches the terminal sphere before A can come within its capture radius), else toward a
+    point behind D as seen from A; ``avoid_oncoming_attacker`` hides only while A flies toward T."""
 
-    def __init__(self, game: GameConfig, avoid: bool):
+    def __init__(self, game: GameConfig, targeter: str):
         super().__init__()
-        self.avoid = avoid
+        self.avoid = targeter in ("avoid_attacker", "avoid_oncoming_attacker")
+        self.oncoming_only = targeter == "avoid_oncoming_attacker"
         scale = game.position_scale  # lengths in the observation are divided by it
         self.v_targeter, self.v_attacker = game.v_targeter / scale, game.v_attacker / scale
         self.capture_radius, self.terminal_radius = game.attacker_radius / scale, game.terminal_sphere_radius / scale
@@ -137,6 +138,7 @@ class ScriptedTeamTurn(nn.Module):
         self.max_yaw_change, self.max_pitch_change = game.max_yaw_change, game.max_pitch_change
         # Block starts as attributes: TorchScript does not read module-level ints in forward.
         self.a, self.d, self.terminal, self.targeter_flag = RICH_FIRST_OTHER, RICH_SECOND_OTHER, RICH_TERMINAL, -ROLE_SIZE
+        self.heading = RICH_HEADING
 
     def forward(self, own: torch.Tensor) -> torch.Tensor:
         own = own.float()
@@ -151,6 +153,9 @@ class ScriptedTeamTurn(nn.Module):
             safe = (to_terminal <= self.terminal_radius) | (margin > 0)
             away = d - a
             shelter = d + self.shelter_distance * away / torch.linalg.vector_norm(away, dim=-1, keepdim=True).clamp_min(1e-12)
+            if self.oncoming_only:  # A's heading, in T's frame as A's position: is A flying toward T?
+                a_heading = own[..., self.a + self.heading : self.a + self.heading + 3]
+                safe = safe | ((-a * a_heading).sum(-1) <= 0)
             targeter_aim = torch.where(safe.unsqueeze(-1), e, shelter)
         targeter = own[..., self.targeter_flag].unsqueeze(-1) > 0.5  # the role one-hot (targeter, defender)
         aim = torch.where(targeter, targeter_aim, a)  # D sees A first too
@@ -194,8 +199,9 @@ class ResidualActor(nn.Module):
 # Named as in the config: ``ppo.attacker_prior``, ``ppo.team_prior``.
 PRIORS = {
     "lead_intercept": LeadInterceptTurn,
-    "straight+pure_pursuit": partial(ScriptedTeamTurn, avoid=False),
-    "avoid_attacker+pure_pursuit": partial(ScriptedTeamTurn, avoid=True),
+    "straight+pure_pursuit": partial(ScriptedTeamTurn, targeter="straight"),
+    "avoid_attacker+pure_pursuit": partial(ScriptedTeamTurn, targeter="avoid_attacker"),
+    "avoid_oncoming_attacker+pure_pursuit": partial(ScriptedTeamTurn, targeter="avoid_oncoming_attacker"),
 }
 
 

@@ -8,6 +8,7 @@ import torch
 
 from envs.agents import ATTACKER, DEFENDER, TARGETER
 from envs.core import BatchedGame
+from envs.kinematics import heading_vectors
 from envs.observations import global_state, observe, policy_input
 from envs.scripted import ScriptedPlayer, targeter_is_safe
 from league.config import load_config
@@ -60,11 +61,16 @@ def test_a_team_with_the_prior_and_a_silent_network_flies_t_home_and_d_at_a():
     assert_plays(team, run, game, DEFENDER, "pure_pursuit")
 
 
-def test_a_team_with_the_avoiding_prior_and_a_silent_network_plays_the_papers_team():
-    run = load_config("selfplay_league", ["ppo.team_prior=avoid_attacker+pure_pursuit"])
+@pytest.mark.parametrize("targeter", ["avoid_attacker", "avoid_oncoming_attacker"])
+def test_a_team_with_an_avoiding_prior_and_a_silent_network_plays_that_scripted_team(targeter):
+    run = load_config("selfplay_league", [f"ppo.team_prior={targeter}+pure_pursuit"])
     team, game = silence(learner_spec(run, "team").build()), turned_anywhere(run)
-    assert 0.05 < targeter_is_safe(game).mean() < 0.95  # T flies home in some games and hides in others
-    assert_plays(team, run, game, TARGETER, "avoid_attacker")
+    safe = targeter_is_safe(game)
+    a, t = game.positions[:, ATTACKER], game.positions[:, TARGETER]
+    oncoming = np.sum((t - a) * heading_vectors(game.headings)[:, ATTACKER], axis=1) > 0
+    # T flies home in some games and hides in others; unsafe games with A flying away tell the two apart
+    assert 0.05 < safe.mean() < 0.95 and 0.05 < (~safe & ~oncoming).mean() and 0.05 < (~safe & oncoming).mean()
+    assert_plays(team, run, game, TARGETER, targeter)
     assert_plays(team, run, game, DEFENDER, "pure_pursuit")
 
 
@@ -72,7 +78,7 @@ def test_a_team_with_the_avoiding_prior_and_a_silent_network_plays_the_papers_te
 @pytest.mark.parametrize("side", ["attacker", "team"])
 def test_the_priors_and_the_heading_cosines_travel_in_every_export_format(tmp_path, fmt, side):
     run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept", "ppo.attacker_heading_cosines=true",
-                                          "ppo.team_prior=avoid_attacker+pure_pursuit"])
+                                          "ppo.team_prior=avoid_oncoming_attacker+pure_pursuit"])
     module = learner_spec(run, side, reward_method=2 if side == "attacker" else None).build()
     rng = np.random.default_rng(1)
     game = BatchedGame(run.game, 256)
