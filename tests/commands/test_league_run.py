@@ -88,7 +88,7 @@ def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
     assert all(learner == snapshot for learner, snapshot in steps), steps
     # Every scripted team combination is in the attackers' pool: a player, trained against, evaluated.
     scripted_teams = query(run_dir, "SELECT id FROM players WHERE side = 'team' AND kind = 'scripted'")
-    assert len(scripted_teams) == len(PLAYERS["targeter"]) * len(PLAYERS["defender"]) == 4
+    assert len(scripted_teams) == len(PLAYERS["targeter"]) * len(PLAYERS["defender"]) == 6
     trained_against = query(run_dir, """
         SELECT DISTINCT m.team FROM matches m JOIN players t ON t.id = m.team
         WHERE m.source = 'training' AND t.kind = 'scripted'""")
