@@ -263,6 +263,10 @@ class LeagueSettings(Strict):
     spread over them by the ``pfsp`` weighting; PFSP draws the rest over the whole pool,
     scripted players included. ``{attacker: 0.5}``: the attackers meet the scripted teams in at
     least half their games however many snapshots the pool holds. Empty: PFSP alone."""
+    scripted_weighting: Literal["pfsp", "uniform"] = "pfsp"
+    """How ``scripted_share`` is spread over the scripted players: by the ``pfsp`` weighting, or
+    evenly (``uniform``), so that a scripted player the learner already beats is still met:
+    ``squared`` gives one it always beats no games, and the learner may unlearn it."""
     attacker_reward_methods: list[Literal[1, 2, 3]] | None = None
     """Train one attacker per listed reward method side by side; default: ``game.attacker_reward`` only."""
     exploiters: list[Side] = Field(default_factory=list)

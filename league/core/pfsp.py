@@ -42,17 +42,22 @@ def pfsp_probabilities(
 
 def with_scripted_share(
     win_rates: np.ndarray | list[float], scripted: list[bool], share: float, weighting: str = "squared",
-    nash_weights: np.ndarray | list[float] | None = None,
+    nash_weights: np.ndarray | list[float] | None = None, scripted_weighting: str = "pfsp",
 ) -> np.ndarray:
     """PFSP probabilities with ``share`` of the mass held for the ``scripted`` candidates and
-    spread over them by the same weighting: ``(1 - share) p + share q``, ``q`` PFSP over the
-    scripted ones alone. Plain PFSP where none is scripted."""
+    spread over them by the same weighting (``scripted_weighting="uniform"``: evenly):
+    ``(1 - share) p + share q``, ``q`` over the scripted ones alone. Plain PFSP where none is
+    scripted."""
     p = pfsp_probabilities(win_rates, weighting, nash_weights)
     mask = np.asarray(scripted, dtype=bool)
     if share == 0 or not mask.any():
         return p
     q = np.zeros_like(p)
-    q[mask] = pfsp_probabilities(
-        np.asarray(win_rates, dtype=np.float64)[mask], weighting, None if nash_weights is None else np.asarray(nash_weights)[mask]
-    )
+    if scripted_weighting == "uniform":
+        q[mask] = 1.0 / mask.sum()
+    else:
+        q[mask] = pfsp_probabilities(
+            np.asarray(win_rates, dtype=np.float64)[mask], weighting,
+            None if nash_weights is None else np.asarray(nash_weights)[mask],
+        )
     return (1.0 - share) * p + share * q

@@ -230,7 +230,8 @@ class Coordinator:
         share = league.scripted_share.get(side, 0.0)
         nash = self.nash_weights(side, opponents, list(played)) if league.pfsp == "nash" else None
         probabilities = [
-            with_scripted_share(self.learner_win_rates(learner, opponents), scripted, share, league.pfsp, nash)
+            with_scripted_share(self.learner_win_rates(learner, opponents), scripted, share, league.pfsp, nash,
+                                league.scripted_weighting)
             for learner in learners
         ]
         exploiters = self.in_phase("exploiter")

@@ -114,6 +114,13 @@ def test_a_scripted_share_holds_that_much_of_the_mass_for_the_scripted_players_w
     np.testing.assert_array_equal(with_scripted_share(x, [True, True, False], 0.0, "squared"), p)
 
 
+def test_a_uniform_scripted_share_still_meets_a_scripted_player_the_learner_always_beats():
+    x = [1.0, 0.5, 0.1]  # the first two scripted; squared gives the first no games
+    assert with_scripted_share(x, [True, True, False], 0.5, "squared")[0] == 0.0
+    shared = with_scripted_share(x, [True, True, False], 0.5, "squared", scripted_weighting="uniform")
+    np.testing.assert_allclose(shared, 0.5 * pfsp_probabilities(x, "squared") + 0.5 * np.array([0.5, 0.5, 0.0]))
+
+
 def test_the_nash_weighting_is_the_given_mixture_whatever_the_win_rates():
     x = [0.9, 0.5, 0.1]
     np.testing.assert_allclose(pfsp_probabilities(x, "nash", [0.2, 0.0, 0.6]), [0.25, 0.0, 0.75])
