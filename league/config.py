@@ -122,9 +122,10 @@ class PPOSettings(Strict):
     training learns the correction: ``avoid_attacker+pure_pursuit`` (the paper's team: T flies
     home while it is safe from A, else hides behind D; D flies at A),
     ``avoid_oncoming_attacker+pure_pursuit`` (T hides only while A flies toward it) or
-    ``straight+pure_pursuit`` (T always flies home). ``none``: the network's output alone. Without a prior, teams trained
-    against attackers that come at T did not fly T home when the attacker stayed away, and lost
-    nearly every game to ``evade_defender`` (docs/results/selfplay-league.md). Needs
+    ``straight+pure_pursuit`` (T always flies home). ``none``: the network's output alone.
+    Without a prior, teams trained against attackers that come at T did not fly T home when the
+    attacker stayed away, and lost nearly every game to ``evade_defender``; with the paper's
+    team's, 0.106 to 0.141 of them (docs/results/selfplay-league.md). Needs
     ``game.observation: rich`` and ``game.action_mode: relative``."""
     attacker_heading_cosines: bool = False
     """The attacker's network also reads two cosines computed from its observation: T's heading

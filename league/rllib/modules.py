@@ -150,13 +150,13 @@ class ScriptedTeamTurn(nn.Module):
             goal = e * (1 - self.terminal_radius / to_terminal.clamp_min(self.terminal_radius)).unsqueeze(-1)
             margin = (self.v_targeter * (torch.linalg.vector_norm(goal - a, dim=-1) - self.capture_radius)
                       - self.v_attacker * torch.linalg.vector_norm(goal, dim=-1))
-            safe = (to_terminal <= self.terminal_radius) | (margin > 0)
+            home = (to_terminal <= self.terminal_radius) | (margin > 0)  # safe
+            if self.oncoming_only:  # or A is not flying toward T (A's heading is in T's frame, as A's position)
+                a_heading = own[..., self.a + self.heading : self.a + self.heading + 3]
+                home = home | ((-a * a_heading).sum(-1) <= 0)
             away = d - a
             shelter = d + self.shelter_distance * away / torch.linalg.vector_norm(away, dim=-1, keepdim=True).clamp_min(1e-12)
-            if self.oncoming_only:  # A's heading, in T's frame as A's position: is A flying toward T?
-                a_heading = own[..., self.a + self.heading : self.a + self.heading + 3]
-                safe = safe | ((-a * a_heading).sum(-1) <= 0)
-            targeter_aim = torch.where(safe.unsqueeze(-1), e, shelter)
+            targeter_aim = torch.where(home.unsqueeze(-1), e, shelter)
         targeter = own[..., self.targeter_flag].unsqueeze(-1) > 0.5  # the role one-hot (targeter, defender)
         aim = torch.where(targeter, targeter_aim, a)  # D sees A first too
         return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
