@@ -16,6 +16,7 @@ from envs.scripted import (
     ScriptedPlayer,
     defender_bisector_intercept,
     targeter_avoid_attacker,
+    targeter_avoid_oncoming_attacker,
     targeter_is_safe,
 )
 
@@ -62,6 +63,17 @@ def test_avoiding_targeter_goes_straight_when_safe_and_hides_otherwise():
     direction = targeter_avoid_attacker(game)
     np.testing.assert_allclose(direction[0], -game.positions[0, TARGETER])
     assert direction[1, 1] > 0  # toward D's side, away from A
+
+
+def test_the_targeter_hides_only_from_an_oncoming_attacker():
+    game = BatchedGame(GameConfig(), 2)
+    unsafe = [[-1.0, 0, 0], [1.0, 0, 0], [1.0, 1.0, 0]]  # A between T and the terminal
+    game.reset(positions=np.array([unsafe, unsafe]))
+    game.headings[:, ATTACKER] = [[np.pi, 0.0], [0.0, 0.0]]  # A flies away from T (-x), then toward T (+x)
+    direction = targeter_avoid_oncoming_attacker(game)
+    np.testing.assert_allclose(direction[0], -game.positions[0, TARGETER])  # home
+    np.testing.assert_allclose(direction[1], targeter_avoid_attacker(game)[1])  # hides, as avoid_attacker
+    assert direction[1, 1] > 0
 
 
 def straight_line_starts(n, seed=0):
