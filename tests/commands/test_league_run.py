@@ -93,7 +93,7 @@ def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
         SELECT DISTINCT m.team FROM matches m JOIN players t ON t.id = m.team
         WHERE m.source = 'training' AND t.kind = 'scripted'""")
     assert sorted(trained_against) == sorted(scripted_teams)
-    assert query(run_dir, "SELECT COUNT(DISTINCT attacker || '-' || team) FROM matches WHERE source = 'evaluation'")[0][0] == 4 * 6  # attackers: scripted, v0-v2; teams: 4 scripted, v0, v1
+    assert query(run_dir, "SELECT COUNT(DISTINCT attacker || '-' || team) FROM matches WHERE source = 'evaluation'")[0][0] == 4 * 8  # attackers: scripted, v0-v2; teams: 6 scripted, v0, v1
     assert (run_dir / "evaluation.md").read_text().count("\n| ") >= 24
     assert list((run_dir / "tensorboard").glob("events.out.tfevents.*"))
     last_checkpoint = query(run_dir, "SELECT path FROM checkpoints ORDER BY iteration DESC LIMIT 1")[0][0]

@@ -11,7 +11,7 @@ from envs import match, render
 def test_match_prints_a_row_per_scripted_matchup(capsys):
     assert match.main(["--episodes", "20"]) == 0
     rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| lead_intercept")]
-    assert len(rows) == 4
+    assert len(rows) == 6  # three targeters x two defenders
 
 
 def test_render_writes_a_png(tmp_path, capsys):
