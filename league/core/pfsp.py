@@ -53,11 +53,8 @@ def with_scripted_share(
     if share == 0 or not mask.any():
         return p
     q = np.zeros_like(p)
-    if scripted_weighting == "uniform":
-        q[mask] = 1.0 / mask.sum()
-    else:
-        q[mask] = pfsp_probabilities(
-            np.asarray(win_rates, dtype=np.float64)[mask], weighting,
-            None if nash_weights is None else np.asarray(nash_weights)[mask],
-        )
+    q[mask] = pfsp_probabilities(
+        np.asarray(win_rates, dtype=np.float64)[mask], weighting if scripted_weighting == "pfsp" else "uniform",
+        None if nash_weights is None else np.asarray(nash_weights)[mask],
+    )
     return (1.0 - share) * p + share * q

@@ -23,7 +23,7 @@ not, and the opposite to T's and D's each.
 Reference rows (``curve_references``), measured once per run and curve opponent on the
 same games: every scripted player of the learner's side (``envs.scripted``: the
 attackers ``pure_pursuit``, ``lead_intercept``, ``proportional_navigation``,
-``evade_defender``; the four scripted teams) and the untrained learner (its version-0 snapshot).
+``evade_defender``; every scripted team) and the untrained learner (its version-0 snapshot).
 
 The coordinator hands in the live learners' modules (``league.rllib.bridge.live_module``):
 measuring needs no RLlib. ``read_curves`` reads the points back; ``league.reports.plots``

@@ -127,9 +127,13 @@ class ScriptedTeamTurn(nn.Module):
     reaches the terminal sphere before A can come within its capture radius), else toward a
     point behind D as seen from A; ``avoid_oncoming_attacker`` hides only while A flies toward T."""
 
+    targeters = ("straight", "avoid_attacker", "avoid_oncoming_attacker")
+
     def __init__(self, game: GameConfig, targeter: str):
         super().__init__()
-        self.avoid = targeter in ("avoid_attacker", "avoid_oncoming_attacker")
+        if targeter not in self.targeters:
+            raise ValueError(f"no team prior for the targeter {targeter!r}; expected one of {self.targeters}")
+        self.avoid = targeter != "straight"
         self.oncoming_only = targeter == "avoid_oncoming_attacker"
         scale = game.position_scale  # lengths in the observation are divided by it
         self.v_targeter, self.v_attacker = game.v_targeter / scale, game.v_attacker / scale
@@ -199,9 +203,7 @@ class ResidualActor(nn.Module):
 # Named as in the config: ``ppo.attacker_prior``, ``ppo.team_prior``.
 PRIORS = {
     "lead_intercept": LeadInterceptTurn,
-    "straight+pure_pursuit": partial(ScriptedTeamTurn, targeter="straight"),
-    "avoid_attacker+pure_pursuit": partial(ScriptedTeamTurn, targeter="avoid_attacker"),
-    "avoid_oncoming_attacker+pure_pursuit": partial(ScriptedTeamTurn, targeter="avoid_oncoming_attacker"),
+    **{f"{targeter}+pure_pursuit": partial(ScriptedTeamTurn, targeter=targeter) for targeter in ScriptedTeamTurn.targeters},
 }
 
 
