@@ -10,8 +10,11 @@ Each scenario set draws, for every game:
 All headings start at yaw = pitch = 0 (the paper's initial angles). Every draw comes
 from the generator passed in, so a seed fixes a whole batch of games.
 
-Evaluation uses ``evaluation_scenarios``: a fixed seed per set, so every player
-compared meets the same games (common random numbers).
+Evaluation uses ``evaluation_scenarios``: fixed starts, so every player compared meets
+the same games (common random numbers). There are two sets of them, drawn with two seeds:
+the ``dev`` games, which learning curves, evaluations during training and every tuning
+play, and the ``test`` games, which only final tables and studies play, so that no
+setting was chosen on the games its result is reported on.
 """
 
 from __future__ import annotations
@@ -20,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# Seed of the fixed evaluation games; changing it changes every evaluation result.
-EVALUATION_SEED = 20_240_917
+# Seeds of the fixed evaluation games; changing one changes every evaluation result on it.
+GAME_SETS = {"dev": 20_240_917, "test": 20_261_205}
 # Uniform numbers behind one start: distances of T, D and A, then two per direction.
 UNIFORMS_PER_START = 9
 
@@ -76,6 +79,9 @@ def positions_from_uniform(name: str, u: np.ndarray) -> np.ndarray:
     return np.stack((attacker, targeter, defender), axis=1)
 
 
-def evaluation_scenarios(name: str, n: int, seed: int = EVALUATION_SEED) -> np.ndarray:
-    """The fixed evaluation games of a set: the same ``n`` starts on every call."""
-    return sample_positions(name, np.random.default_rng(seed), n)
+def evaluation_scenarios(name: str, n: int, games: str = "dev") -> np.ndarray:
+    """The first ``n`` fixed evaluation games of scenario set ``name``, ``games`` ``dev`` or
+    ``test``: the same starts on every call."""
+    if games not in GAME_SETS:
+        raise ValueError(f"games {games!r}: one of {', '.join(GAME_SETS)}")
+    return sample_positions(name, np.random.default_rng(GAME_SETS[games]), n)

@@ -1,12 +1,13 @@
-"""Evaluate a league: ``python -m league.evaluate --run-dir DIR [--episodes N] [--players ...] [--add-scripted ...]``.
+"""Evaluate a league: ``python -m league.evaluate --run-dir DIR [--games test] [--episodes N] [--players ...] [--add-scripted ...]``.
 
-Plays every chosen attacker against every chosen team on the fixed evaluation games
+Plays every chosen attacker against every chosen team on the fixed evaluation games, the
+dev games or (``--games test``) the held-out test games that no curve or tuning plays
 (frozen players only: snapshots, exploiter snapshots and scripted players), prints win
 rates with 95% Wilson intervals and outcome counts, the table per attacker reward method, then the Nash
 equilibrium of the meta-game on these results (``league.analysis.nash``). Results go to
 the league database as evaluation results of the run's last iteration, replacing earlier
-evaluations of the same pairs (the same fixed games again are one measurement, not new
-evidence), and the ratings of that iteration are refitted with them.
+evaluations of the same pairs on the same games (the same fixed games again are one
+measurement, not new evidence); dev-game results also refit that iteration's ratings.
 
 ``--add-scripted`` first makes scripted players the run's config did not list members of the
 league (an attacker by name, ``evade_defender``; a team as ``targeter+defender``), so an old
@@ -36,7 +37,7 @@ from league.state.run_dir import RunDirError, open_run
 from league.state.store import LeagueStore
 
 
-def evaluation_json(scenario: str, episodes: int, results: list[PairEvaluation], meta: Any) -> dict:
+def evaluation_json(scenario: str, games: str, episodes: int, results: list[PairEvaluation], meta: Any) -> dict:
     """The tables' numbers as data (``--json``; the schema is in docs/evaluation.md)."""
     pairs = []
     for r in results:
@@ -46,7 +47,7 @@ def evaluation_json(scenario: str, episodes: int, results: list[PairEvaluation],
             "attacker_win_rate": r.attacker_wins / r.games, "interval_95": [low, high],
             "outcomes": dict(r.result.outcome_counts()),
         })
-    return {"scenario": scenario, "episodes": episodes, "pairs": pairs, "meta_game": meta.as_json() if meta else None}
+    return {"scenario": scenario, "games": games, "episodes": episodes, "pairs": pairs, "meta_game": meta.as_json() if meta else None}
 
 
 def scripted_columns(name: str) -> dict[str, Any]:
@@ -90,6 +91,8 @@ def choose(players: list[Player], names: list[str] | None) -> list[Player]:
 def main(argv: list[str] | None = None) -> int:
     parser = command_parser(prog="python -m league.evaluate", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
+    parser.add_argument("--games", choices=("dev", "test"), default="dev",
+                        help="the dev games (curves, training, tuning) or the held-out test games (default: dev)")
     parser.add_argument("--episodes", type=count(1), help="fixed games per pair (default: the run's evaluation.episodes)")
     parser.add_argument("--players", nargs="+", help="player names (default: every snapshot and scripted player)")
     parser.add_argument(
@@ -127,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         ev = run.evaluation
         results = evaluate_pairs(
             run.game, args.run_dir.resolve(), pairs, episodes, workers, ev.cpus_per_worker,
-            resources=ev.custom_resources_per_worker, torch_threads=run.resources.torch_threads,
+            resources=ev.custom_resources_per_worker, torch_threads=run.resources.torch_threads, games=args.games,
         )
     finally:
         if started_ray:
@@ -135,13 +138,13 @@ def main(argv: list[str] | None = None) -> int:
 
             ray.shutdown()
     with store.transaction():
-        record_evaluations(store, last_iteration(store), results)
+        record_evaluations(store, last_iteration(store), results, args.games)
     attackers, teams = meta_game_players(players)
     meta = meta_game(attackers, teams, {(r.attacker.id, r.team.id): (r.attacker_wins, r.games) for r in results})
     if args.json:
-        print(json.dumps(evaluation_json(run.game.scenario, episodes, results, meta), indent=1))
+        print(json.dumps(evaluation_json(run.game.scenario, args.games, episodes, results, meta), indent=1))
         return 0
-    print(f"{episodes} fixed games of scenario set `{run.game.scenario}` per pair\n")
+    print(f"{episodes} fixed {args.games} games of scenario set `{run.game.scenario}` per pair\n")
     print(format_table(results))
     print(method_table(results))
     print("## Meta-game of the evaluated players\n\n" + format_meta_game(meta, "no snapshot or scripted player on a side"))

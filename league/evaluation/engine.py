@@ -4,7 +4,8 @@ Learned players are RLModules loaded from their saved directories and run with p
 torch forward passes (the Gaussian's mean, i.e. the deterministic action), one per module
 and step over all its games (``league.rollout.games``); scripted players are ``envs.scripted``
 players acting on the games' exact state. Every pair plays the same fixed seeded games
-(``envs.scenarios.evaluation_scenarios``), each once, to its end.
+(``envs.scenarios.evaluation_scenarios``: the ``dev`` games, or the held-out ``test`` games
+that only final tables and studies play), each once, to its end.
 
 ``evaluate_pairs`` runs in this process, or spreads the pairs over ``EvaluationWorker``
 Ray actors (on any node of the cluster) in slices of the same fixed games; both give the
@@ -139,17 +140,20 @@ class PairEvaluation:
 
 
 def evaluate_pair(
-    game: GameConfig, attacker: Player, team: Player, episodes: int, run_dir: Path, start: int = 0, load=None
+    game: GameConfig, attacker: Player, team: Player, episodes: int, run_dir: Path, start: int = 0, load=None,
+    games: str = "dev",
 ) -> PairEvaluation:
-    """Games ``start .. start + episodes`` of the fixed evaluation set, ``attacker`` vs ``team``."""
+    """Games ``start .. start + episodes`` of the fixed ``games`` (``dev`` or ``test``), ``attacker`` vs ``team``."""
     policies = {**policies_of(attacker, run_dir, load), **policies_of(team, run_dir, load)}
-    result = play_fixed_games(game, evaluation_scenarios(game.scenario, start + episodes)[start:], policies)
+    result = play_fixed_games(game, evaluation_scenarios(game.scenario, start + episodes, games)[start:], policies)
     return PairEvaluation(attacker, team, result)
 
 
-def evaluate_here(game: GameConfig, run_dir: Path, pairs: list[tuple[Player, Player]], episodes: int) -> list[PairEvaluation]:
-    """Every pair on the first ``episodes`` fixed games, in this process."""
-    return [evaluate_pair(game, a, t, episodes, run_dir) for a, t in pairs]
+def evaluate_here(
+    game: GameConfig, run_dir: Path, pairs: list[tuple[Player, Player]], episodes: int, games: str = "dev"
+) -> list[PairEvaluation]:
+    """Every pair on the first ``episodes`` fixed ``games``, in this process."""
+    return [evaluate_pair(game, a, t, episodes, run_dir, games=games) for a, t in pairs]
 
 
 class EvaluationWorker:
@@ -168,10 +172,10 @@ class EvaluationWorker:
 
     def play(
         self, attacker: Player, team: Player, start: int, episodes: int,
-        attacker_module: torch.nn.Module | None = None, team_module: torch.nn.Module | None = None,
+        attacker_module: torch.nn.Module | None = None, team_module: torch.nn.Module | None = None, games: str = "dev",
     ) -> GameResults:
         sent = {str(Path(p.checkpoint)): m for p, m in ((attacker, attacker_module), (team, team_module)) if m is not None}
-        return evaluate_pair(self.game, attacker, team, episodes, Path(), start, lambda path: sent[str(path)]).result
+        return evaluate_pair(self.game, attacker, team, episodes, Path(), start, lambda path: sent[str(path)], games).result
 
 
 def merge(results: list[GameResults]) -> GameResults:
@@ -225,16 +229,16 @@ class EvaluationPool:
             self.sent[key] = ray.put(load_module(path))
         return self.sent[key]
 
-    def evaluate(self, pairs: list[tuple[Player, Player]], episodes: int) -> list[PairEvaluation]:
+    def evaluate(self, pairs: list[tuple[Player, Player]], episodes: int, games: str = "dev") -> list[PairEvaluation]:
         import ray
 
         if not self.actors:
-            return evaluate_here(self.game, self.run_dir, pairs, episodes)
+            return evaluate_here(self.game, self.run_dir, pairs, episodes, games)
         bounds = np.linspace(0, episodes, len(self.actors) + 1).astype(int)
         slices = [(int(lo), int(hi - lo)) for lo, hi in zip(bounds[:-1], bounds[1:]) if hi > lo]
         futures = [
             [
-                (actor, start, n, actor.play.remote(a, t, start, n, self.module_ref(a), self.module_ref(t)))
+                (actor, start, n, actor.play.remote(a, t, start, n, self.module_ref(a), self.module_ref(t), games))
                 for actor, (start, n) in zip(self.actors, slices)
             ]
             for a, t in pairs
@@ -250,7 +254,7 @@ class EvaluationPool:
                         self.actors.remove(actor)
                         self.log(f"evaluation worker lost ({type(err).__name__}); {len(self.actors)} left")
                     self.log(f"replaying evaluation games {start}..{start + n - 1} of {a.name} vs {t.name} in the driver")
-                    parts.append(evaluate_pair(self.game, a, t, n, self.run_dir, start).result)
+                    parts.append(evaluate_pair(self.game, a, t, n, self.run_dir, start, games=games).result)
             results.append(PairEvaluation(a, t, merge(parts)))
         return results
 
@@ -271,14 +275,15 @@ def evaluate_pairs(
     pool: EvaluationPool | None = None,
     resources: dict[str, float] | None = None,
     torch_threads: int | None = None,
+    games: str = "dev",
 ) -> list[PairEvaluation]:
-    """Every pair on the first ``episodes`` fixed games: on ``pool``, on ``workers`` new actors, or here."""
+    """Every pair on the first ``episodes`` fixed ``games``: on ``pool``, on ``workers`` new actors, or here."""
     if pool is not None:
-        return pool.evaluate(pairs, episodes)
+        return pool.evaluate(pairs, episodes, games)
     if workers <= 0:
-        return evaluate_here(game, run_dir, pairs, episodes)
+        return evaluate_here(game, run_dir, pairs, episodes, games)
     pool = EvaluationPool(game, run_dir, workers, cpus_per_worker, resources, torch_threads=torch_threads)
     try:
-        return pool.evaluate(pairs, episodes)
+        return pool.evaluate(pairs, episodes, games)
     finally:
         pool.close()

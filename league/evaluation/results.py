@@ -15,12 +15,18 @@ from league.evaluation.engine import PairEvaluation, evaluate_pairs
 from league.state.store import LeagueStore
 
 
-def record_evaluations(store: LeagueStore, iteration: int, results: list[PairEvaluation]) -> None:
-    """Record ``results`` as evaluations of ``iteration`` and refit that iteration's ratings
-    (inside the caller's transaction)."""
+# The store's ``matches.source`` of evaluations on each set of fixed games.
+EVALUATION_SOURCE = {"dev": "evaluation", "test": "test"}
+
+
+def record_evaluations(store: LeagueStore, iteration: int, results: list[PairEvaluation], games: str = "dev") -> None:
+    """Record ``results``, played on the fixed ``games``, as evaluations of ``iteration``
+    (inside the caller's transaction); on the dev games, refit that iteration's ratings too
+    (the league's ratings never see the test games)."""
     for r in results:
-        store.record_evaluation(iteration, r.outcome_rows())
-    store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
+        store.record_evaluation(iteration, r.outcome_rows(), EVALUATION_SOURCE[games])
+    if games == "dev":
+        store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
 
 
 def last_iteration(store: LeagueStore) -> int:

@@ -64,7 +64,7 @@ def evaluation_markdown(run: RunConfig, iteration: int, results: list[PairEvalua
     """``evaluation.md``: the whole frozen league on the fixed games after ``iteration``."""
     return (
         f"# Evaluation of {run.name} after iteration {iteration}\n\n"
-        f"{run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair; "
+        f"{run.evaluation.episodes} fixed dev games of scenario set `{run.game.scenario}` per pair; "
         "attacker win rate with its 95% Wilson interval.\n\n" + format_table(results)
         + "\n## Per attacker reward method\n\n" + method_table(results)
     )

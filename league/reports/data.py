@@ -135,7 +135,7 @@ def gather(store: LeagueStore, run: RunConfig, trajectories: Trajectories | None
     summary = (
         f"{last.get('iteration', 0)} iterations, {last.get('env_steps', 0)} env steps, {last.get('episodes', 0)} "
         f"training episodes, {store.training_seconds():.0f} s of training iterations; {len(players)} players. "
-        f"Evaluation: {run.evaluation.episodes} fixed games of scenario set `{run.game.scenario}` per pair."
+        f"Evaluation: {run.evaluation.episodes} fixed dev games of scenario set `{run.game.scenario}` per pair."
     )
     generations, missing_generations = generation_lines(players, payoff)
     return ReportData(

@@ -30,7 +30,7 @@ from league.core.match_plan import MatchPlan
 from league.core.players import Player
 from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
-from league.rllib.env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, seed_iteration
+from league.rllib.env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, SeededEnvRunner, seed_iteration
 from league.rllib import compat
 from league.rllib.learner import LeaguePPOLearner
 from league.rllib.modules import ActorCriticModule, ScriptedModule
@@ -38,7 +38,6 @@ from ray.rllib.algorithms.algorithm import Algorithm
 from ray.rllib.algorithms.ppo import PPO, PPOConfig
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
 from ray.rllib.core.rl_module.rl_module import RLModuleSpec
-from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 from ray.rllib.utils.metrics import (
     ENV_RUNNER_RESULTS,
     EPISODE_MODULE_RETURN_MEAN,
@@ -187,7 +186,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             num_cpus_per_env_runner=res.num_cpus_per_env_runner,
             custom_resources_per_env_runner=res.custom_resources_per_env_runner,
             rollout_fragment_length="auto",
-            env_runner_cls=MultiAgentEnvRunner if res.sampler == "standard" else BatchedEnvRunner,
+            env_runner_cls=SeededEnvRunner if res.sampler == "standard" else BatchedEnvRunner,
         )
         .learners(
             num_learners=0,

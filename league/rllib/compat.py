@@ -52,8 +52,13 @@ def weights_seq_no(env_runner: Any) -> int:
 
 
 def env_runner_seed(env_runner: Any) -> int | None:
-    """The seed RLlib derived for this runner (the config's seed and the worker index)."""
+    """The seed this runner's games start from (RLlib's reset seeds game ``i`` with it plus ``i``)."""
     return env_runner._seed
+
+
+def set_env_runner_seed(env_runner: Any, seed: int) -> None:
+    """Replace the seed RLlib derived for this runner (the config's seed plus the worker index)."""
+    env_runner._seed = seed
 
 
 def env_runner_callbacks(env_runner: Any) -> list[Any]:

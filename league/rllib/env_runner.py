@@ -50,6 +50,7 @@ from envs.agents import AGENTS, Outcome
 from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal_distance
 from envs.vector_env import TargetDefenseVectorEnv
 from league.core.payoff import attacker_won_games
+from league.core.seeding import Purpose, stream, stream_seed
 from league.rllib import compat
 from league.rllib.modules import ScriptedModule
 from league.rollout.games import Policy, Rollout, Rows, ScriptedOnState
@@ -99,7 +100,20 @@ class EpisodeRef:
     id_: str
 
 
-class BatchedEnvRunner(MultiAgentEnvRunner):
+class SeededEnvRunner(MultiAgentEnvRunner):
+    """RLlib's runner with its games' starts drawn from the run's own stream for this runner.
+
+    RLlib seeds runner ``w`` with ``seed + w`` and its game ``i`` with ``seed + w + i``, so runs
+    of neighbouring seeds, and the runners of one run, would replay each other's starts.
+    """
+
+    def __init__(self, config: Any, **kwargs: Any):
+        super().__init__(config=config, **kwargs)
+        if self.config.seed is not None:
+            compat.set_env_runner_seed(self, stream_seed(self.config.seed, Purpose.GAME_STARTS, self.worker_index))
+
+
+class BatchedEnvRunner(SeededEnvRunner):
     """Samples ``num_envs_per_env_runner`` games of ``envs.vector_env`` at once.
 
     As the standard runner does (``batch_mode="truncate_episodes"``), episodes still
@@ -509,7 +523,7 @@ class BatchedEnvRunner(MultiAgentEnvRunner):
 def seed_iteration(env_runner: Any, seed: int, iteration: int) -> None:
     """Seed torch's, NumPy's and Python's global generators in ``env_runner``'s process for one
     iteration, from (``seed``, ``iteration``, its worker index); any env runner."""
-    words = np.random.SeedSequence([seed, iteration, env_runner.worker_index]).generate_state(3)
+    words = stream(seed, Purpose.EXPLORATION, iteration, env_runner.worker_index).generate_state(3)
     torch.manual_seed(int(words[0]))
     np.random.seed(int(words[1]))
     random.seed(int(words[2]))

@@ -63,7 +63,7 @@ CREATE TABLE IF NOT EXISTS players (
 -- games' outcomes by (attacker, team); the table keeps its first name so older databases open
 CREATE TABLE IF NOT EXISTS matches (
     iteration INTEGER NOT NULL,
-    source TEXT NOT NULL,            -- 'training' or 'evaluation'
+    source TEXT NOT NULL,            -- 'training', 'evaluation' (the dev games) or 'test' (the held-out test games)
     attacker INTEGER NOT NULL REFERENCES players(id),
     team INTEGER NOT NULL REFERENCES players(id),
     outcome TEXT NOT NULL,           -- an envs.agents.Outcome label
@@ -268,8 +268,9 @@ class LeagueStore:
             [(iteration, source, r.attacker, r.team, r.outcome, r.count) for r in rows],
         )
 
-    def record_evaluation(self, iteration: int, rows: list[OutcomeCount]) -> None:
-        """Record evaluation results, replacing repeats of a pair.
+    def record_evaluation(self, iteration: int, rows: list[OutcomeCount], source: str = "evaluation") -> None:
+        """Record evaluation results on the dev games (``source`` ``evaluation``) or the test
+        games (``test``: only final tables and studies read them), replacing repeats of a pair.
 
         The same fixed games played again are not new evidence, so a pair's evaluation is one
         measurement: the newest. Between two frozen players it replaces every earlier one; a
@@ -278,20 +279,21 @@ class LeagueStore:
         """
         for attacker, team in {(r.attacker, r.team) for r in rows}:
             self.db.execute(
-                "DELETE FROM matches WHERE source = 'evaluation' AND attacker = ?1 AND team = ?2 AND (iteration = ?3 "
+                "DELETE FROM matches WHERE source = ?4 AND attacker = ?1 AND team = ?2 AND (iteration = ?3 "
                 "OR NOT EXISTS (SELECT 1 FROM players WHERE id IN (?1, ?2) AND kind = 'learner'))",
-                (attacker, team, iteration),
+                (attacker, team, iteration, source),
             )
-        self.record_outcomes(iteration, "evaluation", rows)
+        self.record_outcomes(iteration, source, rows)
 
-    def newest_evaluation_rows(self) -> list[OutcomeCount]:
-        """The outcomes of each pair's newest evaluation."""
+    def newest_evaluation_rows(self, source: str = "evaluation") -> list[OutcomeCount]:
+        """The outcomes of each pair's newest evaluation on the dev games (or ``source`` ``test``)."""
         return self._outcome_counts(
             "SELECT m.attacker, m.team, m.outcome, SUM(m.count) FROM matches m JOIN ("
-            "  SELECT attacker, team, MAX(iteration) AS newest FROM matches WHERE source = 'evaluation' "
+            "  SELECT attacker, team, MAX(iteration) AS newest FROM matches WHERE source = ?1 "
             "  GROUP BY attacker, team"
             ") n ON m.attacker = n.attacker AND m.team = n.team AND m.iteration = n.newest "
-            "WHERE m.source = 'evaluation' GROUP BY m.attacker, m.team, m.outcome"
+            "WHERE m.source = ?1 GROUP BY m.attacker, m.team, m.outcome",
+            (source,),
         )
 
     def counted_results(self, source: str | None = None) -> list[OutcomeCount]:
@@ -309,7 +311,7 @@ class LeagueStore:
         return [(iteration, OutcomeCount(*counts)) for iteration, *counts in rows]
 
     def outcome_rows(self, source: str | None = None, since_iteration: int = 0) -> list[OutcomeCount]:
-        """Outcomes of ``source``'s games (both sources: evaluations repeated count again) since ``since_iteration``."""
+        """Outcomes of ``source``'s games (every source: evaluations repeated count again) since ``since_iteration``."""
         return self._outcome_counts(
             "SELECT attacker, team, outcome, SUM(count) FROM matches "
             "WHERE (?1 IS NULL OR source = ?1) AND iteration >= ?2 GROUP BY attacker, team, outcome",

@@ -49,6 +49,7 @@ from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
 from league.training.progress import IterationTiming, ProgressReporter, TimeSplit
 from league.state.run_dir import fresh_directory, prune_checkpoints, record_config, write_checkpoint, write_replacing
 from league.core.schedule import PhaseState, schedule_of
+from league.core.seeding import Purpose, stream
 from league.training.stop import StopRequests
 from league.state.store import DB_NAME, LeagueStore
 
@@ -88,7 +89,7 @@ class Coordinator:
         self.algo = algo
         self.state = state
         self.schedule = schedule_of(run)
-        self.rng = np.random.default_rng(seed)
+        self.rng = np.random.default_rng(None if seed is None else stream(seed, Purpose.MATCH_PLANS))
         self.evaluation_pool: EvaluationPool | None = None  # made at the first evaluation
         self.log: Callable[[str], None] = print  # the progress reporter's once training starts
         self.runner_health = bridge.env_runner_health(algo)

@@ -1,5 +1,8 @@
 """``league.evaluate --add-scripted``: measuring an old league against a new scripted player."""
 
+import json
+
+from league.core.payoff import ATTACKER_WINS
 from league.evaluate import main
 from league.state.run_dir import open_run
 
@@ -35,3 +38,32 @@ def test_a_scripted_player_joins_an_old_league_and_is_evaluated(run_copy, capsys
     finally:
         store.close()
     assert games == 16  # against the chosen team and the added one; the second evaluation replaced the first
+
+
+def test_the_test_games_are_held_out_from_the_dev_games(run_copy, capsys):
+    from envs.scenarios import evaluation_scenarios
+
+    dev, test = evaluation_scenarios("default", 1000), evaluation_scenarios("default", 1000, "test")
+    assert not {row.tobytes() for row in dev} & {row.tobytes() for row in test}
+
+    _, store = open_run(run_copy)
+    try:
+        dev_rows = store.newest_evaluation_rows()
+    finally:
+        store.close()
+    args = ["--run-dir", str(run_copy), "--workers", "0", "--episodes", "8", "--players",
+            "attacker-m2-v1", "team-v1", "scripted-lead_intercept"]
+    assert main([*args, "--games", "test", "--json"]) == 0
+    played = {(p["attacker"], p["team"]): p for p in json.loads(capsys.readouterr().out)["pairs"]}
+    _, store = open_run(run_copy)
+    try:
+        ids = {p.name: p.id for p in store.players()}
+        test_rows, after = store.newest_evaluation_rows("test"), store.newest_evaluation_rows()
+    finally:
+        store.close()
+    assert set(after) == set(dev_rows)  # the dev games' results, which the league reads, are untouched
+    for (attacker, team), pair in played.items():
+        wins = sum(r.count for r in test_rows if (r.attacker, r.team) == (ids[attacker], ids[team]) and r.outcome in ATTACKER_WINS)
+        assert (wins, sum(r.count for r in test_rows if (r.attacker, r.team) == (ids[attacker], ids[team]))) == (pair["attacker_wins"], 8)
+    assert main([*args, "--games", "dev", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["games"] == "dev"

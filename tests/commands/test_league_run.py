@@ -151,5 +151,5 @@ def test_evaluate_on_workers_prints_no_ray_banners(tiny_run, tmp_path):
         capture_output=True, text=True, timeout=RUN_TIMEOUT,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert "fixed games of scenario set" in proc.stdout
+    assert "fixed dev games of scenario set" in proc.stdout
     assert "Token authentication" not in proc.stderr and "Started a local Ray instance" not in proc.stderr, proc.stderr

@@ -28,14 +28,20 @@ def ray_instance():
     ray.shutdown()
 
 
-def test_workers_give_the_numbers_of_a_plain_loop(ray_instance, tmp_path):
+@pytest.mark.parametrize("games", ["dev", "test"])
+def test_workers_give_the_numbers_of_a_plain_loop(ray_instance, tmp_path, games):
     game = GameConfig()
-    [by_workers] = evaluate_pairs(game, tmp_path, [(ATTACKER, TEAM)], 301, workers=3)
+    [by_workers] = evaluate_pairs(game, tmp_path, [(ATTACKER, TEAM)], 301, workers=3, games=games)
+    [here] = evaluate_pairs(game, tmp_path, [(ATTACKER, TEAM)], 301, games=games)
     plain = play(game, scripted_players("proportional_navigation", "straight", "bisector_intercept"),
-                 evaluation_scenarios("default", 301))
+                 evaluation_scenarios("default", 301, games))
     for field in ("outcome", "steps", "returns", "attacker_returns"):
         np.testing.assert_array_equal(getattr(by_workers.result, field), getattr(plain, field))
+        np.testing.assert_array_equal(getattr(here.result, field), getattr(plain, field))
     assert by_workers.games == 301
+    other = play(game, scripted_players("proportional_navigation", "straight", "bisector_intercept"),
+                 evaluation_scenarios("default", 301, {"dev": "test", "test": "dev"}[games]))
+    assert not np.array_equal(plain.steps, other.steps)  # the other set's games end otherwise
 
 
 def assert_same_games(rollout, plain):

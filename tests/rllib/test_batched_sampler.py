@@ -7,13 +7,14 @@ import torch
 from torch import nn
 
 from envs.agents import AGENTS
-from league.rllib.env_runner import BatchedEnvRunner
+from league.rllib import compat
+from league.rllib.env_runner import BatchedEnvRunner, SeededEnvRunner
 from league.config import RunConfig
 from league.core.players import Player
 from league.core.match_plan import MatchPlan
+from league.core.seeding import Purpose, stream_seed
 from league.rllib.bridge import build_config, episode_outcomes, set_trainable
 from ray.rllib.core.columns import Columns
-from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 
 GAMES = 4
 ATTACKER = Player(id=1, side="attacker", kind="learner", version=0, reward_method=2)
@@ -121,8 +122,13 @@ def assert_same(standard, batched, agents):
 
 def test_the_sampler_is_chosen_by_config(algos):
     standard, batched = algos[TEAM.name]
-    assert type(standard.env_runner) is MultiAgentEnvRunner
+    assert type(standard.env_runner) is SeededEnvRunner
     assert isinstance(batched.env_runner, BatchedEnvRunner)
+
+
+def test_both_samplers_start_their_games_from_the_runs_own_stream(algos):
+    for algo in algos[TEAM.name]:
+        assert compat.env_runner_seed(algo.env_runner) == stream_seed(5, Purpose.GAME_STARTS, 0)
 
 
 def test_same_seeds_and_deterministic_policies_give_the_same_episodes(algos):
