@@ -26,7 +26,7 @@ side of the same training seed on the same ``--episodes`` fixed games (Wilson 95
 intervals), and its exploitability: ``--seeds`` best responses (``league.exploit``; their
 mean) of ``--br-env-steps`` each, against a team, or ``--team-br-env-steps`` (a team's best
 response to an attacker: the team learns more slowly). Per arm, the mean exploitability over training seeds with
-a 95% bootstrap interval over the training seeds. Writes ``OUT/league_quality.md``.
+its Student-t 95% interval over the training seeds (``mean_interval``). Writes ``OUT/league_quality.md``.
 Restarts reuse finished runs and best responses (and resume unfinished runs).
 """
 
@@ -44,7 +44,7 @@ import numpy as np
 from envs.scenarios import evaluation_scenarios
 from league.analysis.exploitability import exploitability
 from league.evaluation.engine import play_fixed_games, policies_of
-from league.analysis.statistics import bootstrap_interval, wilson_interval
+from league.analysis.statistics import SEED_INTERVAL, mean_interval, wilson_interval
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
 from league.studies.runs import finished, train_run, train_runs_on_cluster
@@ -184,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{', '.join(map(str, args.train_seeds))}; {args.episodes} fixed evaluation games per pair (Wilson 95%); "
         f"exploitability: {args.seeds} best responses per final player, {args.br_env_steps:,} env steps each against "
         f"a team, {args.team_br_env_steps:,} against an attacker "
-        "(their mean), and per arm the mean over training seeds (bootstrap 95% over training seeds). Wall time per "
+        f"(their mean), and per arm the mean over training seeds ({SEED_INTERVAL}). Wall time per "
         "training run: " + ", ".join(f"{label} {seconds:.0f} s" for label, seconds in read_walls().items()) + ".",
     ]
     for side in args.sides:
@@ -211,9 +211,9 @@ def main(argv: list[str] | None = None) -> int:
             lines.append(f"| {arm} | {seed} | {player.name} | {steps} | " + " | ".join(cells) + f" | {found.mean:.3f} ({seeds}) |")
             print(lines[-1], flush=True)
         lines += ["", f"Exploitability of the final {side}, mean over training seeds:", "",
-                  "| arm | mean | bootstrap 95% over training seeds |", "| --- | --- | --- |"]
+                  f"| arm | mean | {SEED_INTERVAL} |", "| --- | --- | --- |"]
         for arm, values in by_arm.items():
-            spread = "[{:.3f}, {:.3f}]".format(*bootstrap_interval(values)) if len(values) > 1 else "(one seed)"
+            spread = "[{:.3f}, {:.3f}]".format(*mean_interval(values)) if len(values) > 1 else "(one seed)"
             lines.append(f"| {arm} | {np.mean(values):.3f} | {spread} |")
     (args.out / "league_quality.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

@@ -38,7 +38,8 @@ def latest_by_method(players: list[Player]) -> dict[int, Player]:
 
 
 def method_table(results: list[PairEvaluation]) -> str:
-    """Per attacker reward method (its newest snapshot): win rate against each kind of team."""
+    """Per attacker reward method (its newest snapshot): win rate against each kind of team,
+    with a 95% Wilson interval over the fixed starts (not over the games of a pooled column)."""
     attackers = latest_by_method([r.attacker for r in results])
     teams = sorted({r.team.id: r.team for r in results}.values(), key=lambda p: p.id)
     scripted = [t for t in teams if t.kind == "scripted"]
@@ -54,8 +55,16 @@ def method_table(results: list[PairEvaluation]) -> str:
             ids = {t.id for t in group}
             chosen = [r for r in results if r.attacker.id == attacker.id and r.team.id in ids]
             wins, games = sum(r.attacker_wins for r in chosen), sum(r.games for r in chosen)
-            low, high = wilson_interval(wins, games)
-            cells.append(f"{wins / games:.3f} [{low:.3f}, {high:.3f}]" if games else "")
+            if not games:
+                cells.append("")
+                continue
+            # A column of k teams replays the same n fixed starts against each team: its k * n
+            # games are not independent, so the interval counts the n distinct starts. Wilson on
+            # (pooled rate * n, n) is conservative: the k outcomes of one start average to a value
+            # in [0, 1] with mean p, whose variance is at most p (1 - p), that of one game.
+            starts = max(r.games for r in chosen)
+            low, high = wilson_interval(wins / games * starts, starts)
+            cells.append(f"{wins / games:.3f} [{low:.3f}, {high:.3f}]")
         lines.append(f"| {method} | {attacker.name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from league.analysis.statistics import bootstrap_interval
+from league.analysis.statistics import SEED_INTERVAL, mean_interval
 from league.core.payoff import aggregate
 from league.reports.data import PAPER_TABLE_1
 from league.state.store import LeagueStore
@@ -110,23 +110,23 @@ def table(args: argparse.Namespace, variant: str, budget: Budget, jobs: list[Job
         "",
         f"Attacker win rate against the paper's scripted team (T to the terminal avoiding A, D pursuing A), "
         f"{args.evaluation_episodes} fixed evaluation games per seed, {budget.describe()} of training per attacker, "
-        f"{terminal}, {args.seeds} seeds; mean with a bootstrap 95% interval over seeds. "
+        f"{terminal}, {args.seeds} seeds; mean with its interval ({SEED_INTERVAL}). "
         f"Overrides: {args.overrides or 'none'}. Wall time of this invocation (finished runs reused): {wall:.0f} s.",
         "",
-        "| method | per seed | mean | 95% bootstrap interval | paper (100 rounds) | own-method return per seed "
+        f"| method | per seed | mean | {SEED_INTERVAL} | paper (100 rounds) | own-method return per seed "
         "(last curve point) | best scripted attacker's return |",
         "| --- | --- | --- | --- | --- | --- | --- |",
     ]
     means = {}
     for method, values in rates.items():
-        low, high = bootstrap_interval(values)
         means[method] = float(np.mean(values))
+        spread = "[{:.3f}, {:.3f}]".format(*mean_interval(values)) if len(values) > 1 else "(one seed)"
         per_seed = ", ".join(f"{v:.3f}" for v in values)
         own = ", ".join(f"{r:.2f}" for r, _, _ in returns.get(method, [])) or "no curves"
         best = returns[method][0] if returns.get(method) else None
         scripted = f"{best[1]:.2f} ({best[2]})" if best else ""
         lines.append(
-            f"| {method} | {per_seed} | {means[method]:.3f} | [{low:.3f}, {high:.3f}] | {PAPER_TABLE_1[method]} | {own} | {scripted} |"
+            f"| {method} | {per_seed} | {means[method]:.3f} | {spread} | {PAPER_TABLE_1[method]} | {own} | {scripted} |"
         )
     order = " > ".join(f"method {m}" for m in sorted(means, key=lambda m: -means[m]))
     lines += ["", f"Ordering here: {order}. The paper's: method 2 > method 3 > method 1."]

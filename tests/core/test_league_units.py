@@ -308,11 +308,3 @@ def test_reproduce_reads_the_newest_evaluation_of_the_paper_team(tmp_path):
     store.close()
     assert attacker_win_rate(tmp_path, 2) == (0.75, 4)
 
-
-def test_bootstrap_interval_over_seeds():
-    from league.analysis.statistics import bootstrap_interval
-
-    assert bootstrap_interval([0.4, 0.4, 0.4]) == pytest.approx((0.4, 0.4))
-    low, high = bootstrap_interval([0.2, 0.5, 0.8])
-    assert 0.2 - 1e-9 <= low < 0.5 < high <= 0.8 + 1e-9
-    assert bootstrap_interval([0.2, 0.5, 0.8]) == (low, high)  # seeded: the same interval every time
