@@ -25,8 +25,8 @@ from pathlib import Path
 
 import torch
 
-from envs.scripted import ScriptedPlayer
 from league.evaluation.engine import PairEvaluation, evaluate_pairs
+from league.evaluation.panel import add_scripted
 from league.evaluation.results import last_iteration, record_evaluations
 from league.evaluation.tables import format_table, method_table
 from league.analysis.nash import format_meta_game, meta_game, meta_game_players
@@ -34,7 +34,6 @@ from league.analysis.statistics import wilson_interval
 from league.cli import command_parser, count
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
-from league.state.store import LeagueStore
 
 
 def evaluation_json(scenario: str, games: str, episodes: int, results: list[PairEvaluation], meta: Any) -> dict:
@@ -48,33 +47,6 @@ def evaluation_json(scenario: str, games: str, episodes: int, results: list[Pair
             "outcomes": dict(r.result.outcome_counts()),
         })
     return {"scenario": scenario, "games": games, "episodes": episodes, "pairs": pairs, "meta_game": meta.as_json() if meta else None}
-
-
-def scripted_columns(name: str) -> dict[str, Any]:
-    """The league-member columns of a scripted player named ``attacker`` or ``targeter+defender``."""
-    targeter, team, defender = name.partition("+")
-    try:  # ScriptedPlayer names the unknown player and the known ones
-        if team:
-            ScriptedPlayer("targeter", targeter), ScriptedPlayer("defender", defender)
-        else:
-            ScriptedPlayer("attacker", name)
-    except ValueError as err:
-        raise ValueError(f"--add-scripted {name}: {err} (a team: targeter+defender)") from None
-    if team:
-        return dict(side="team", kind="scripted", version=0, scripted_targeter=targeter, scripted_defender=defender)
-    return dict(side="attacker", kind="scripted", version=0, scripted_attacker=name)
-
-
-def add_scripted(store: LeagueStore, names: list[str]) -> list[str]:
-    """Make the named scripted players league members (those not yet in it); their names."""
-    columns = [scripted_columns(name) for name in names]  # every name checked before anything is written
-    members = {p.name for p in store.players()}
-    added = [Player(id=-1, **c) for c in columns]
-    with store.transaction():
-        for player, c in zip(added, columns):
-            if player.name not in members:
-                store.add_player(last_iteration(store), **c)
-    return [p.name for p in added]
 
 
 def choose(players: list[Player], names: list[str] | None) -> list[Player]:
@@ -104,7 +76,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         run, store = open_run(args.run_dir)
-        added = add_scripted(store, args.add_scripted)
+        try:
+            added = add_scripted(store, args.add_scripted)
+        except ValueError as err:
+            raise ValueError(f"--add-scripted {err}") from None
         players = choose(store.players(), args.players and list(dict.fromkeys([*args.players, *added])))
     except (RunDirError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)

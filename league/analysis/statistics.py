@@ -64,6 +64,22 @@ def welch_test(a: Sequence[float], b: Sequence[float]) -> float:
     return float(stats.ttest_ind(x, y, equal_var=False).pvalue)
 
 
+def paired_t_test(differences: Sequence[float]) -> float:
+    """Two-sided p-value of the paired t-test over seeds: are the per-seed differences (a
+    trained player's rate minus its reference's, on that seed's games) centred on 0?
+
+    Needs at least 2 values. With zero variance the p-value is 1.0 when every difference is
+    0 and 0.0 otherwise (the same rule as ``welch_test``)."""
+    d = np.asarray(differences, dtype=float)
+    if d.size < 2:
+        raise ValueError(f"paired_t_test needs at least 2 values (one per seed), got {d.size}")
+    if np.ptp(d) == 0:
+        return 1.0 if d[0] == 0 else 0.0
+    from scipy import stats
+
+    return float(stats.ttest_1samp(d, 0.0).pvalue)
+
+
 def iqm(values: Sequence[float]) -> float:
     """Interquartile mean (rliable's): the mean of the middle 50% of the values."""
     from scipy import stats

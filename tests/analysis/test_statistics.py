@@ -90,3 +90,14 @@ def test_probability_of_improvement_hand_computed():
     assert probability_of_improvement([1.0, 2.0], [3.0, 1.0]) == pytest.approx(0.375)
     assert probability_of_improvement([0.5, 0.5], [0.5]) == pytest.approx(0.5)
     assert probability_of_improvement([0.9, 0.8, 0.7], [0.1, 0.2]) == 1.0
+
+
+def test_paired_t_test_hand_checked():
+    from league.analysis.statistics import paired_t_test
+
+    # d = (0.1, 0.2, 0.3): t = 0.2 / (0.1 / sqrt 3) = 3.4641 on 2 degrees of freedom; two-sided
+    # p = 1 - t / sqrt(2 + t^2) = 0.07418 (the t distribution with 2 degrees of freedom in closed form).
+    assert paired_t_test([0.1, 0.2, 0.3]) == pytest.approx(1 - 3.4641016 / math.sqrt(2 + 3.4641016**2), rel=1e-6)
+    assert paired_t_test([0.0, 0.0, 0.0]) == 1.0 and paired_t_test([0.2, 0.2]) == 0.0
+    with pytest.raises(ValueError):
+        paired_t_test([0.1])

@@ -1,0 +1,219 @@
+"""Do a config's final players beat the scripted ones? Each seed's run measured on the held-out test games.
+
+For each run (one training seed): every scripted player of ``envs.scripted`` joins its league
+(``league.evaluation.panel``), then its final players (the newest snapshot of each attacker
+reward method and of the team), their untrained versions 0 and every scripted player play
+each other on the fixed *test* games, which no curve, evaluation during training or tuning
+played. The results are recorded in the run's store (source ``test``), so a second call
+plays only what is missing. Each comparison is a row:
+
+* a final attacker against each scripted team, beside the best scripted attacker against it;
+* the final team against each scripted attacker and each final attacker, beside the best
+  scripted team against that attacker (the lowest attacker win rate);
+* with ``untrained``, the final team beside its version 0 against every attacker, and each
+  final attacker beside its version 0 against every team;
+* the range of Nash weight the test games' meta-game allows on the trained players of each side.
+
+Within one seed a row's verdict compares the two 95% Wilson intervals (better, even, worse);
+over seeds, the seed mean gets a Student-t interval and the paired t-test over seeds of
+(trained minus reference) decides (``league.analysis.statistics``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from league.analysis.nash import meta_game, weight_range
+from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
+from league.core.payoff import aggregate
+from league.core.players import Player
+from league.evaluation.engine import evaluate_pairs
+from league.evaluation.panel import add_scripted, every_scripted_player
+from league.evaluation.results import last_iteration, record_evaluations
+from league.state.run_dir import open_run
+
+SIGNIFICANCE = 0.05  # of the paired t-test over seeds
+
+
+@dataclass(frozen=True)
+class FinalPlayers:
+    """The players of one run that a final table compares."""
+
+    attackers: dict[int, Player]  # reward method -> its newest snapshot
+    team: Player  # the newest team snapshot
+    first_attackers: dict[int, Player]  # reward method -> version 0 (before training)
+    first_team: Player
+    scripted_attackers: list[Player]
+    scripted_teams: list[Player]
+
+    @classmethod
+    def of(cls, players: list[Player]) -> "FinalPlayers":
+        snapshots = [p for p in players if p.kind == "snapshot"]
+        attackers = sorted((p for p in snapshots if p.side == "attacker"), key=lambda p: p.version)
+        teams = sorted((p for p in snapshots if p.side == "team"), key=lambda p: p.version)
+        if not teams or not attackers:
+            raise ValueError("the run has no trained snapshot of each side")
+        return cls(
+            attackers={p.reward_method: p for p in attackers},
+            team=teams[-1],
+            first_attackers={p.reward_method: p for p in reversed(attackers)},
+            first_team=teams[0],
+            scripted_attackers=[p for p in players if p.side == "attacker" and p.kind == "scripted"],
+            scripted_teams=[p for p in players if p.side == "team" and p.kind == "scripted"],
+        )
+
+    def sides(self, untrained: bool) -> tuple[list[Player], list[Player]]:
+        """The attackers and the teams of the table (every pair of them is played)."""
+        attackers = [*self.scripted_attackers, *self.attackers.values()]
+        teams = [*self.scripted_teams, self.team]
+        if untrained:
+            attackers += [p for p in self.first_attackers.values() if p not in attackers]
+            teams += [self.first_team] if self.first_team not in teams else []
+        return attackers, teams
+
+
+@dataclass(frozen=True)
+class Row:
+    """One comparison on one seed: ``player`` (its side's view) against ``against``, beside ``reference``."""
+
+    player: str
+    against: str
+    reference: str
+    side: str  # the side ``player`` and ``reference`` play
+    attacker_wins: tuple[int, int]  # (wins, games) of the attacker in player's pair
+    reference_attacker_wins: tuple[int, int]
+
+    @property
+    def rate(self) -> float:
+        return self.attacker_wins[0] / self.attacker_wins[1]
+
+    @property
+    def reference_rate(self) -> float:
+        return self.reference_attacker_wins[0] / self.reference_attacker_wins[1]
+
+    @property
+    def gain(self) -> float:
+        """How much better than the reference, for ``side`` (an attacker wins more, a team lets it win less)."""
+        return self.rate - self.reference_rate if self.side == "attacker" else self.reference_rate - self.rate
+
+    def verdict(self) -> str:
+        """``better``/``worse`` when the two 95% Wilson intervals lie apart, else ``even``."""
+        mine, theirs = wilson_interval(*self.attacker_wins), wilson_interval(*self.reference_attacker_wins)
+        higher, lower = mine[0] > theirs[1], mine[1] < theirs[0]
+        if self.side == "team":
+            higher, lower = lower, higher
+        return "better" if higher else "worse" if lower else "even"
+
+
+@dataclass(frozen=True)
+class NashRow:
+    """The range of Nash weight the meta-game allows on one side's trained players."""
+
+    side: str
+    low: float
+    high: float
+
+
+def measure_on_test_games(run_dir: Path, episodes: int, untrained: bool = True, workers: int = 0) -> tuple[list[Row], list[NashRow]]:
+    """One run's rows on the first ``episodes`` test games, playing the pairs not yet recorded."""
+    run, store = open_run(run_dir)
+    try:
+        add_scripted(store, every_scripted_player())
+        final = FinalPlayers.of(store.players())
+        attackers, teams = final.sides(untrained)
+        recorded = aggregate(store.newest_evaluation_rows("test"))
+        missing = [(a, t) for a in attackers for t in teams if recorded.get((a.id, t.id), (0, 0))[1] != episodes]
+        if missing:
+            results = evaluate_pairs(run.game, run_dir, missing, episodes, workers, games="test")
+            with store.transaction():
+                record_evaluations(store, last_iteration(store), results, "test")
+            recorded = aggregate(store.newest_evaluation_rows("test"))
+    finally:
+        store.close()
+    return comparisons(final, recorded, untrained), nash_rows(attackers, teams, recorded)
+
+
+def comparisons(final: FinalPlayers, table: dict, untrained: bool) -> list[Row]:
+    """Every row of one run from its test-game results ``{(attacker id, team id): (wins, games)}``."""
+
+    def row(player: Player, against: Player, reference: Player) -> Row:
+        pair = (lambda p: (p, against)) if player.side == "attacker" else (lambda p: (against, p))
+        a, t = pair(player)
+        ra, rt = pair(reference)
+        return Row(player.name, against.name, reference.name, player.side, table[(a.id, t.id)], table[(ra.id, rt.id)])
+
+    def rate(attacker: Player, team: Player) -> float:
+        wins, games = table[(attacker.id, team.id)]
+        return wins / games
+
+    rows = []
+    for attacker in final.attackers.values():
+        for team in final.scripted_teams:
+            best = max(final.scripted_attackers, key=lambda a: rate(a, team))
+            rows.append(row(attacker, team, best))
+    for attacker in [*final.scripted_attackers, *final.attackers.values()]:
+        best = min(final.scripted_teams, key=lambda t: rate(attacker, t))
+        rows.append(row(final.team, attacker, best))
+    if untrained:
+        attackers, teams = final.sides(untrained)
+        rows += [row(final.team, attacker, final.first_team) for attacker in attackers]
+        for method, attacker in final.attackers.items():
+            rows += [row(attacker, team, final.first_attackers[method]) for team in teams]
+    return rows
+
+
+def nash_rows(attackers: list[Player], teams: list[Player], table: dict) -> list[NashRow]:
+    """On each side, the least and most Nash weight any equilibrium puts on trained players (version > 0)."""
+    payoff = meta_game(attackers, teams, table).equilibrium.payoff
+    return [
+        NashRow("attacker", *weight_range(payoff, "row", [trained(p) for p in attackers])),
+        NashRow("team", *weight_range(payoff, "column", [trained(p) for p in teams])),
+    ]
+
+
+def trained(player: Player) -> bool:
+    """A frozen player that training made (a learner's version 0 is the untrained network)."""
+    return player.kind != "scripted" and player.version > 0
+
+
+def seed_verdict(gains: list[float]) -> tuple[float, str]:
+    """The paired t-test's p-value over seeds of the trained player's gains on its reference, and the verdict."""
+    p = paired_t_test(gains)
+    mean = float(np.mean(gains))
+    return p, ("better" if mean > 0 else "worse") if p < SIGNIFICANCE else "even"
+
+
+def table(per_seed: dict[int, tuple[list[Row], list[NashRow]]]) -> str:
+    """Markdown: a row per comparison, a column per seed, the mean with its interval, the test over seeds."""
+    seeds = sorted(per_seed)
+    lines = [
+        "| trained player | against | " + " | ".join(f"seed {s}" for s in seeds)
+        + f" | mean [{SEED_INTERVAL}] | reference | its rate (mean) | paired t-test p | over seeds |",
+        "| --- | --- | " + " | ".join("---" for _ in seeds) + " | --- | --- | --- | --- | --- |",
+    ]
+    first = per_seed[seeds[0]][0]
+    for index, head in enumerate(first):
+        rows = [per_seed[s][0][index] for s in seeds]
+        cells = []
+        for r in rows:
+            low, high = wilson_interval(*r.attacker_wins)
+            cells.append(f"{r.rate:.3f} [{low:.3f}, {high:.3f}] {r.verdict()}")
+        rates = [r.rate for r in rows]
+        p, verdict = seed_verdict([r.gain for r in rows])
+        low, high = mean_interval(rates)
+        lines.append(
+            f"| {head.player} | {head.against} | " + " | ".join(cells)
+            + f" | {np.mean(rates):.3f} [{low:.3f}, {high:.3f}] | {head.reference} | "
+            + f"{np.mean([r.reference_rate for r in rows]):.3f} | {p:.3g} | **{verdict}** |"
+        )
+    for index, head in enumerate(per_seed[seeds[0]][1]):
+        ranges = [per_seed[s][1][index] for s in seeds]
+        lines.append(
+            f"| trained {head.side}s | Nash weight [least, most] | "
+            + " | ".join(f"[{n.low:.3f}, {n.high:.3f}]" for n in ranges)
+            + f" | least over seeds {min(n.low for n in ranges):.3f} | | | | |"
+        )
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,105 @@
+"""A study over training seeds: ``python -m league.study --config C [C ...] --seeds S [S ...] --out DIR``.
+
+Each config is an arm. For every arm and seed, trains ``league.run --config C --set seed=S``
+in ``DIR/ARM/seed-S/`` to its end (a finished run is reused, an unfinished one resumed,
+``league.studies.runs``), then measures the run's final players against every scripted
+player of the other side on the held-out test games (``league.studies.beats_scripted``:
+the pairs not yet played are played and recorded in the run's store). Prints, per arm, a
+table with a column per seed (the rate, its 95% Wilson interval and the verdict within
+that seed's games) and over the seeds (the mean with a Student-t 95% interval, and the
+paired t-test of trained minus reference), then the runs' training time and speed;
+``--page FILE`` also writes them to FILE.
+
+``--tuning-seeds`` names the seeds that chose the arms' settings: the page prints them,
+and a study seed among them is refused, so that the reported seeds are not those that chose.
+
+Exit codes: 0 done; 2 a bad argument (a missing config, a tuning seed among the seeds, a run
+directory another process is training); 1 a training run that failed (run again to resume).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+from league.cli import command_parser, count
+from league.config import ConfigError, load_config
+from league.state.run_dir import RunDirError, open_run
+from league.studies.beats_scripted import measure_on_test_games, table
+from league.studies.runs import train_run
+
+
+def speed(run_dir: Path) -> str:
+    """One run's training: env steps, training seconds and env steps per second."""
+    _, store = open_run(run_dir)
+    try:
+        steps, seconds = store.last_iteration()["env_steps"], store.training_seconds()
+    finally:
+        store.close()
+    return f"{steps:,} env steps in {seconds:.0f} s of training iterations ({steps / seconds:,.0f} env steps/s)"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = command_parser(prog="python -m league.study", description=__doc__.splitlines()[0])
+    parser.add_argument("--config", nargs="+", required=True, help="one config per arm (a name in configs/ or a path)")
+    parser.add_argument("--seeds", type=count(0), nargs="+", required=True, help="training seeds (at least 5 for a claim)")
+    parser.add_argument("--tuning-seeds", type=count(0), nargs="*", default=[],
+                        help="the seeds that chose the arms' settings (printed; refused among --seeds)")
+    parser.add_argument("--out", type=Path, required=True, help="the study's directory: OUT/ARM/seed-S/")
+    parser.add_argument("--episodes", type=count(1), default=1000, help="test games per pair (default 1000)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="an override for every run of every arm")
+    parser.add_argument("--page", type=Path, help="also write the tables to this Markdown file")
+    args = parser.parse_args(argv)
+    chosen = sorted(set(args.seeds) & set(args.tuning_seeds))
+    if chosen:
+        print(f"error: --seeds {chosen} also chose the settings (--tuning-seeds); report other seeds", file=sys.stderr)
+        return 2
+    if len(set(args.seeds)) < 2:
+        print("error: --seeds: at least two seeds for an interval over seeds", file=sys.stderr)
+        return 2
+    try:
+        for config in args.config:
+            load_config(config, [*args.overrides, f"seed={args.seeds[0]}"])
+    except ConfigError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    torch.set_num_threads(1)  # the test games are played in this process, one pair at a time
+    started = time.monotonic()
+    sections = []
+    for config in args.config:
+        arm = Path(config).stem
+        per_seed, speeds = {}, []
+        for seed in args.seeds:
+            run_dir = args.out / arm / f"seed-{seed}"
+            try:
+                train_run(config, run_dir, [*args.overrides, f"seed={seed}"], f"{arm}, seed {seed}")
+            except RunDirError as err:
+                print(f"error: {err}", file=sys.stderr)
+                return 2
+            except subprocess.CalledProcessError:
+                print(f"error: training {run_dir} failed (its output says why); run again to resume", file=sys.stderr)
+                return 1
+            print(f"measuring {run_dir} on {args.episodes} test games per pair", flush=True)
+            per_seed[seed] = measure_on_test_games(run_dir, args.episodes)
+            speeds.append(f"- seed {seed}: {speed(run_dir)}")
+        sections.append(
+            f"## {arm}\n\n`{config}`, seeds {' '.join(map(str, args.seeds))}"
+            + (f" (settings chosen on seeds {' '.join(map(str, args.tuning_seeds))})" if args.tuning_seeds else "")
+            + (f", overrides {' '.join(args.overrides)}" if args.overrides else "")
+            + f"; {args.episodes} test games per pair.\n\n" + table(per_seed) + "\n" + "\n".join(speeds) + "\n"
+        )
+    text = "\n".join(sections)
+    print(text)
+    print(f"study done in {time.monotonic() - started:.0f} s")
+    if args.page:
+        args.page.write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
