@@ -154,7 +154,8 @@ def test_the_meta_game_reports_each_sides_groups_with_their_vertex_weight_and_ra
         "learners", "learners", "scripted_and_v0", "exploiters", "scripted_and_v0", "learners"]
     # The tie game above; the exploiter wins less against both teams, so no optimal mixture plays it.
     rates = [[0.9, 0.1], [0.1, 0.9], [0.5, 0.5], [0.4, 0.4]]
-    payoff = {(a.id, t.id): (round(100 * rates[i][j]), 100) for i, a in enumerate(attackers) for j, t in enumerate(teams)}
+    payoff = {(a.id, t.id): (round(100 * rates[i][j]), 100)
+              for i, a in enumerate(attackers) for j, t in enumerate(teams)}
     meta = meta_game(attackers, teams, payoff)
     groups = {(g["side"], g["group"]): g for g in meta.as_json()["groups"]}
     assert set(groups) == {(side, group) for side in ("attacker", "team")
@@ -167,8 +168,8 @@ def test_the_meta_game_reports_each_sides_groups_with_their_vertex_weight_and_ra
     assert groups[("attacker", "exploiters")]["range"] == pytest.approx([0.0, 0.0], abs=RANGE_TOL)
     assert groups[("team", "learners")]["players"] == ["team-v1"]
     assert groups[("team", "learners")]["range"] == pytest.approx([0.5, 0.5], abs=RANGE_TOL)
-    assert groups[("team", "exploiters")] == {"side": "team", "group": "exploiters", "players": [], "vertex_weight": 0.0,
-                                              "range": [0.0, 0.0]}
+    assert groups[("team", "exploiters")] == {
+        "side": "team", "group": "exploiters", "players": [], "vertex_weight": 0.0, "range": [0.0, 0.0]}
     text = format_meta_game(meta)
     assert "| attacker | trained learners' snapshots (v1 on) | 2 | 1.000 | 0.000 to 1.000 |" in text
     assert "one optimal vertex" in text

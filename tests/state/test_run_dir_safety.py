@@ -499,7 +499,8 @@ def check_nash_groups(meta_json: dict, payoff: dict, players: list) -> None:
         expected = {
             "learners": [p.name for p in chosen if p.kind == "snapshot" and p.version > 0],
             "exploiters": [p.name for p in chosen if p.kind == "exploiter_snapshot"],
-            "scripted_and_v0": [p.name for p in chosen if p.kind == "scripted" or (p.kind == "snapshot" and p.version == 0)],
+            "scripted_and_v0": [p.name for p in chosen
+                                if p.kind == "scripted" or (p.kind == "snapshot" and p.version == 0)],
         }
         for g in (g for g in groups if g["side"] == side):
             assert g["players"] == expected[g["group"]]
@@ -528,7 +529,8 @@ def test_status_and_evaluate_give_each_groups_nash_range_beside_the_vertex(run_c
     assert evaluate.main(["--run-dir", str(run_copy), "--episodes", "4", "--workers", "0", "--json"]) == 0
     evaluated = json.loads(capsys.readouterr().out)
     by_name = {p.name: p.id for p in players}
-    played = {(by_name[r["attacker"]], by_name[r["team"]]): (r["attacker_wins"], r["games"]) for r in evaluated["pairs"]}
+    played = {(by_name[r["attacker"]], by_name[r["team"]]): (r["attacker_wins"], r["games"])
+              for r in evaluated["pairs"]}
     check_nash_groups(evaluated["meta_game"], played, players)
 
 
