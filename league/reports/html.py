@@ -20,7 +20,7 @@ from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.render import COLOURS
 from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
 from league.analysis.generations import PANEL_TITLES, SIDES, GenerationLine
-from league.analysis.nash import META_GAME_NOTE, MIXTURE_HEADER
+from league.analysis.nash import GROUP_HEADER, GROUP_NOTE, GROUP_TITLE, META_GAME_NOTE, MIXTURE_HEADER, MIXTURE_TITLE
 from league.core.players import POOL_KINDS
 from league.evaluation.trajectories import Episode
 from league.reports.data import (
@@ -239,7 +239,10 @@ def generations_figure(lines: list[GenerationLine]) -> go.Figure:
 def meta_game_html(data: ReportData) -> list[str]:
     if data.meta is None:
         return [f"<p>No meta-game: {html.escape(NO_META_GAME)}</p>"]
-    return [f"<p>{html.escape(data.meta.value_line())}</p>", html_table(MIXTURE_HEADER, data.meta.mixture_rows()),
+    return [f"<p>{html.escape(data.meta.value_line())}</p>",
+            f"<p>{html.escape(GROUP_TITLE)}:</p>", html_table(GROUP_HEADER, data.meta.group_rows()),
+            f"<p class='note'>{html.escape(GROUP_NOTE)}</p>",
+            f"<p>{html.escape(MIXTURE_TITLE)}:</p>", html_table(MIXTURE_HEADER, data.meta.mixture_rows()),
             f"<p class='note'>{html.escape(META_GAME_NOTE)}</p>"]
 
 

@@ -7,7 +7,9 @@ from pathlib import Path
 from rich.table import Table
 
 from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability
-from league.analysis.nash import MIXTURE_HEADER, META_GAME_NOTE, league_meta_game
+from league.analysis.nash import (
+    GROUP_HEADER, GROUP_NOTE, GROUP_TITLE, META_GAME_NOTE, MIXTURE_HEADER, MIXTURE_TITLE, league_meta_game,
+)
 from league.core.payoff import aggregate, player_record
 from league.state.run_dir import usable_checkpoints
 from league.state.store import LeagueStore
@@ -39,16 +41,21 @@ def league_table(store: LeagueStore, source: str | None = None) -> Table:
 
 
 def nash_section(store: LeagueStore) -> list:
-    """The meta-game's value and the players with nonzero Nash weight (or why there is no meta-game)."""
+    """The meta-game's value, each group's Nash weight and range, and the players with nonzero Nash weight
+    at the LP's vertex (or why there is no meta-game)."""
     meta, why_not = league_meta_game(store.players(), store.newest_evaluation_rows())
     if meta is None:
         return [f"no meta-game: {why_not}"]
-    table = Table(title="Nash mixtures", caption=META_GAME_NOTE)
-    for column in MIXTURE_HEADER:
-        table.add_column(column, justify="left" if column in ("side", "player") else "right")
-    for row in meta.mixture_rows():
-        table.add_row(*row)
-    return [meta.value_line(), table]
+    tables = []
+    for title, caption, header, rows in ((GROUP_TITLE, GROUP_NOTE, GROUP_HEADER, meta.group_rows()),
+                                         (MIXTURE_TITLE, META_GAME_NOTE, MIXTURE_HEADER, meta.mixture_rows())):
+        table = Table(title=title, caption=caption)
+        for column in header:
+            table.add_column(column, justify="left" if column in ("side", "group", "player") else "right")
+        for row in rows:
+            table.add_row(*row)
+        tables.append(table)
+    return [meta.value_line(), *tables]
 
 
 def exploitability_section(store: LeagueStore) -> list:

@@ -27,7 +27,11 @@ def test_a_scripted_player_joins_an_old_league_and_is_evaluated(run_copy, capsys
     args = ["--run-dir", str(run_copy), "--workers", "0", "--episodes", "8", "--players", "team-v1",
             "--add-scripted", "evade_defender", "straight+bisector_intercept"]
     assert main(args) == 0
-    assert "| scripted-evade_defender | team-v1 | 8 |" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "| scripted-evade_defender | team-v1 | 8 |" in out
+    # The meta-game of the players it evaluated: each group's Nash range beside the LP's vertex.
+    assert "| side | group | players | weight at the vertex | range over optimal mixtures |" in out
+    assert "Nash mixture (one optimal vertex" in out
     assert main(args) == 0  # a member already: not added twice
     assert members(run_copy) == before + ["scripted-evade_defender", "scripted-straight+bisector_intercept"]
 

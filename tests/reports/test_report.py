@@ -1,5 +1,6 @@
 """What the report and the league's numbers show: games counted once, the HTML page in a browser, progress lines."""
 
+import html
 import re
 import sqlite3
 
@@ -91,6 +92,25 @@ def test_report_page_is_self_contained_with_a_3d_scene_per_shown_game(report_dir
         for label in ("won", "lost"):
             if f"trajectory_{side}_{label}.png" not in shown:
                 assert ("never won" if label == "won" else "never lost") in text
+
+
+def test_the_report_shows_each_groups_nash_range_beside_the_vertex(report_dir, tiny_run):
+    from league.analysis.nash import GROUP_HEADER, MIXTURE_TITLE, league_meta_game
+
+    store = LeagueStore(tiny_run)
+    try:
+        meta, _ = league_meta_game(store.players(), store.newest_evaluation_rows())
+    finally:
+        store.close()
+    rows = meta.group_rows()
+    assert {row[0] for row in rows} == {"attacker", "team"}
+    text = (report_dir / "report.md").read_text()
+    page = (report_dir / "index.html").read_text()
+    assert "| " + " | ".join(GROUP_HEADER) + " |" in text and MIXTURE_TITLE in text
+    assert "".join(f"<th>{h}</th>" for h in GROUP_HEADER) in page and MIXTURE_TITLE in page
+    for row in rows:
+        assert "| " + " | ".join(row) + " |" in text
+        assert "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" in page
 
 
 def colour_pixels(png: bytes, hex_colour: str, tolerance: int = 40) -> int:

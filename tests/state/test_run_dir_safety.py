@@ -483,6 +483,57 @@ def test_status_and_evaluate_give_their_numbers_as_json(run_copy, capsys):
 
 
 
+def check_nash_groups(meta_json: dict, payoff: dict, players: list) -> None:
+    """``meta_json["groups"]`` (``--json``) against the Nash ranges of its payoff matrix solved here."""
+    import numpy as np
+
+    from league.analysis.nash import meta_game_players, weight_range
+
+    attackers, teams = meta_game_players(players)
+    matrix = np.array([[payoff[(a.id, t.id)][0] / payoff[(a.id, t.id)][1] for t in teams] for a in attackers])
+    weights = {(p["side"], p["player"]): p["nash_weight"] for p in meta_json["players"]}
+    groups = meta_json["groups"]
+    assert [(g["side"], g["group"]) for g in groups] == [
+        (side, group) for side in ("attacker", "team") for group in ("learners", "exploiters", "scripted_and_v0")]
+    for side, chosen in (("attacker", attackers), ("team", teams)):
+        expected = {
+            "learners": [p.name for p in chosen if p.kind == "snapshot" and p.version > 0],
+            "exploiters": [p.name for p in chosen if p.kind == "exploiter_snapshot"],
+            "scripted_and_v0": [p.name for p in chosen
+                                if p.kind == "scripted" or (p.kind == "snapshot" and p.version == 0)],
+        }
+        for g in (g for g in groups if g["side"] == side):
+            assert g["players"] == expected[g["group"]]
+            assert g["vertex_weight"] == pytest.approx(sum(weights[(side, name)] for name in g["players"]))
+            members = [k for k, p in enumerate(chosen) if p.name in g["players"]]
+            ends = weight_range(matrix, "row" if side == "attacker" else "column", members) if members else (0.0, 0.0)
+            assert g["range"] == pytest.approx(list(ends), abs=1e-9)
+            assert g["range"][0] - 1e-5 <= g["vertex_weight"] <= g["range"][1] + 1e-5
+
+
+def test_status_and_evaluate_give_each_groups_nash_range_beside_the_vertex(run_copy, capsys):
+    import json
+
+    from league.core.payoff import aggregate
+
+    assert status.main(["--run-dir", str(run_copy)]) == 0
+    out = capsys.readouterr().out
+    assert "Nash weight by group" in out and "range over optimal mixtures" in out and "one optimal vertex" in out
+    assert status.main(["--run-dir", str(run_copy), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    store = LeagueStore(run_copy)
+    players, payoff = store.players(), aggregate(store.newest_evaluation_rows())
+    store.close()
+    check_nash_groups(data["meta_game"], payoff, players)
+
+    assert evaluate.main(["--run-dir", str(run_copy), "--episodes", "4", "--workers", "0", "--json"]) == 0
+    evaluated = json.loads(capsys.readouterr().out)
+    by_name = {p.name: p.id for p in players}
+    played = {(by_name[r["attacker"]], by_name[r["team"]]): (r["attacker_wins"], r["games"])
+              for r in evaluated["pairs"]}
+    check_nash_groups(evaluated["meta_game"], played, players)
+
+
 def test_set_is_explained_in_the_help(capsys):
     with pytest.raises(SystemExit):
         run.parse_args(["--help"])
