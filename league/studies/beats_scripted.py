@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from league.analysis.nash import meta_game, weight_range
+from league.analysis.nash import meta_game
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
 from league.core.payoff import aggregate
 from league.core.players import Player
@@ -167,11 +167,9 @@ def comparisons(final: FinalPlayers, table: dict, untrained: bool) -> list[Row]:
 
 def nash_rows(attackers: list[Player], teams: list[Player], table: dict) -> list[NashRow]:
     """On each side, the least and most Nash weight any equilibrium puts on trained players (version > 0)."""
-    payoff = meta_game(attackers, teams, table).equilibrium.payoff
-    return [
-        NashRow("attacker", *weight_range(payoff, "row", [trained(p) for p in attackers])),
-        NashRow("team", *weight_range(payoff, "column", [trained(p) for p in teams])),
-    ]
+    meta = meta_game(attackers, teams, table)
+    return [NashRow(side, *meta.weight_range(side, [p for p in players if trained(p)]))
+            for side, players in (("attacker", attackers), ("team", teams))]
 
 
 def trained(player: Player) -> bool:
