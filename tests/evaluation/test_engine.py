@@ -11,7 +11,7 @@ from envs.scenarios import evaluation_scenarios
 from envs.scripted import PLAYERS, ScriptedPlayer
 from league.config import load_config
 from league.evaluate import main as evaluate_main
-from league.evaluation.engine import LearnedAgent, deterministic, evaluate_pairs, play_fixed_games
+from league.evaluation.engine import LearnedAgent, deterministic, evaluate_pair, evaluate_pairs, merge, play_fixed_games
 from league.rllib.bridge import learner_spec
 from league.rollout.games import ScriptedOnState
 from league.core.players import Player
@@ -84,10 +84,29 @@ def test_a_learned_team_plays_as_two_controllers_of_the_plain_loop():
 
 
 def test_evaluation_is_deterministic_for_a_fixed_set(tmp_path):
+    # A learned team saved once: every evaluation below loads its own module object from it.
+    torch.manual_seed(0)
+    learner_spec(load_config("smoke"), "team").build().save_to_path(str(tmp_path / "team-v1"))
+    learned = Player(id=3, side="team", kind="learner", version=1, checkpoint="team-v1")
     game = GameConfig()
-    first, second = (evaluate_pairs(game, tmp_path, [(ATTACKER, TEAM)], 200)[0] for _ in range(2))
-    np.testing.assert_array_equal(first.result.outcome, second.result.outcome)
-    assert first.attacker_wins == second.attacker_wins
+    counts = {}
+    for team in (TEAM, learned):
+        [whole] = evaluate_pairs(game, tmp_path, [(ATTACKER, team)], 100)
+        # The same games played in two slices, as the evaluation workers play them.
+        halves = merge([evaluate_pair(game, ATTACKER, team, 50, tmp_path, start).result for start in (0, 50)])
+        assert_same_games(halves, whole.result)
+        assert int(halves.attacker_wins.sum()) == whole.attacker_wins
+        if team.kind == "learner":  # another module object loaded from the same weights
+            again = evaluate_pair(game, ATTACKER, team, 100, tmp_path)
+            assert_same_games(again.result, whole.result)
+        # Other games (the next 100 of the set) are played otherwise: the games played are those asked for.
+        later = evaluate_pair(game, ATTACKER, team, 100, tmp_path, start=100)
+        assert not np.array_equal(later.result.steps, whole.result.steps), team.name
+        counts[team.name] = whole.result.outcome_counts(), later.result.outcome_counts()
+    # The scripted pair's games end in different ways, in other numbers on the other games (the
+    # untrained team loses every game: the same counts on any set).
+    first, later = counts[TEAM.name]
+    assert sum(n > 0 for n in first.values()) > 1 and later != first, counts
 
 
 def test_evaluate_cli_prints_pairs_and_the_method_table(tiny_run, capsys):
