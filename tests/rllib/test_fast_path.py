@@ -476,7 +476,10 @@ def compare_bf16_update(algo, monkeypatch, native: bool):
     or not; also the dtypes the Linear layers of each module output inside our Learner's loss
     (``ppo_loss``, which RLlib's own update does not call), by module id."""
     monkeypatch.setattr("league.rllib.compat.native_bf16", lambda: native)  # the local Learner runs in this process
-    [call] = algo.learner_group.foreach_learner(lambda learner: {id(learner.module[m]): m for m in learner.module.keys()})
+    def module_ids_by_object(learner):
+        return {id(learner.module[m]): m for m in learner.module.keys()}
+
+    [call] = algo.learner_group.foreach_learner(module_ids_by_object)
     module_ids, dtypes = call.get(), {}
     original = learner_module.ppo_loss
 
