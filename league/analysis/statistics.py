@@ -33,3 +33,15 @@ def bootstrap_interval(values: list[float], seed: int = 0) -> tuple[float, float
     data = np.asarray(values)
     means = data[rng.integers(0, len(data), size=(BOOTSTRAP_SAMPLES, len(data)))].mean(axis=1)
     return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
+
+
+def mean_interval(values: list[float], confidence: float = 0.95) -> tuple[float, float]:
+    """Student-t interval of the mean of ``values`` (one per training seed): mean +- t * s / sqrt(n),
+    ``t`` the two-sided quantile with ``n - 1`` degrees of freedom. Needs at least two values."""
+    from scipy.stats import t  # here: seconds to import
+
+    data = np.asarray(values, dtype=float)
+    if len(data) < 2:
+        raise ValueError(f"a Student-t interval needs at least 2 values, got {len(data)}")
+    half = float(t.ppf(0.5 + confidence / 2, len(data) - 1) * data.std(ddof=1) / math.sqrt(len(data)))
+    return float(data.mean()) - half, float(data.mean()) + half
