@@ -8,8 +8,7 @@
 
 No percentile bootstrap over seeds below about 20 seeds: at n = 3 its interval is within
 [min, max] of the seeds and held the true mean in about 75% of simulated studies, not 95%
-(``tests/analysis/test_statistics.py``). ``bootstrap_interval`` remains only until its last
-callers move to ``mean_interval``.
+(``tests/analysis/test_statistics.py``).
 """
 
 from __future__ import annotations
@@ -93,15 +92,3 @@ def probability_of_improvement(a: Sequence[float], b: Sequence[float]) -> float:
     x, y = np.asarray(a, dtype=float)[:, None], np.asarray(b, dtype=float)[None, :]
     return float(np.mean((x > y) + 0.5 * (x == y)))
 
-
-BOOTSTRAP_SAMPLES = 10_000
-
-
-def bootstrap_interval(values: list[float], seed: int = 0) -> tuple[float, float]:
-    """Deprecated: use ``mean_interval`` (this percentile interval undercovers at few seeds).
-
-    95% percentile interval of the mean over resampled seeds."""
-    rng = np.random.default_rng(seed)
-    data = np.asarray(values)
-    means = data[rng.integers(0, len(data), size=(BOOTSTRAP_SAMPLES, len(data)))].mean(axis=1)
-    return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))

@@ -51,6 +51,7 @@ class Player:
     created_iteration: int = 0
     seed: int | None = None  # a best response's training seed
     env_step_budget: int | None = None  # a best response's training budget (env steps asked for)
+    from_prior: bool | None = None  # a best response: started from the run's prior (True) or from scratch (False)
 
     @property
     def trains(self) -> bool:

@@ -58,7 +58,8 @@ CREATE TABLE IF NOT EXISTS players (
     created_iteration INTEGER NOT NULL,
     created_at TEXT NOT NULL DEFAULT (datetime('now')),
     seed INTEGER,                    -- a best response's training seed
-    env_step_budget INTEGER          -- a best response's training budget in env steps
+    env_step_budget INTEGER,         -- a best response's training budget in env steps
+    from_prior INTEGER               -- a best response: 1 started from the run's prior, 0 from scratch
 );
 -- games' outcomes by (attacker, team); the table keeps its first name so older databases open
 CREATE TABLE IF NOT EXISTS matches (
@@ -124,7 +125,7 @@ WALL_CLOCK_COLUMNS = {
 
 PLAYER_COLUMNS = (
     "id, side, kind, version, reward_method, parent, scripted_attacker, scripted_targeter, "
-    "scripted_defender, env_steps, checkpoint, created_iteration, seed, env_step_budget"
+    "scripted_defender, env_steps, checkpoint, created_iteration, seed, env_step_budget, from_prior"
 )
 
 
@@ -168,7 +169,7 @@ class LeagueStore:
             if "curve_points" not in tables:  # a database from before learning curves were recorded
                 self.db.executescript(f"BEGIN; {SCHEMA} COMMIT;")
             columns = {row[1] for row in self.db.execute("PRAGMA table_info(players)")}
-            for column in ("seed", "env_step_budget"):  # a database from before best responses
+            for column in ("seed", "env_step_budget", "from_prior"):  # a database from before best responses, or their start
                 if column not in columns:
                     self.db.execute(f"ALTER TABLE players ADD COLUMN {column} INTEGER")
         except sqlite3.DatabaseError as err:

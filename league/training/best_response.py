@@ -1,14 +1,32 @@
-"""Best responses: a fresh learner trained from scratch against one frozen player alone, then
-evaluated against it and recorded as a league member (kind ``best_response``).
+"""Best responses: a fresh learner trained against one frozen player alone, then evaluated
+against it and recorded as a league member (kind ``best_response``).
+
+How it trains, and why:
+
+- **From scratch** by default: the best response's side starts without the run's prior
+  (``ppo.attacker_prior`` or ``ppo.team_prior`` set to ``none`` for its side only; the
+  frozen player keeps its own, or it would not be the player it is). ``from_prior=True``
+  (``league.exploit --from-prior``) keeps the run's prior. Its network is the run's
+  (``ppo.hidden``, ``ppo.attacker_heading_cosines``: inputs, not a prior); the player row
+  records which start (``from_prior``).
+- **Trained as measured**: the frozen player acts by its policy's mean in training
+  (``league.frozen_players_explore: false``), as it does in the evaluation that scores the
+  best response (a run on ``resources.sampler: standard``, which cannot, trains its best
+  responses on ``fast``).
+- **Its learning curve**: every ``budget / CURVE_POINTS`` env steps, the best response as it
+  is then plays the frozen player on the first ``evaluation.curve_episodes`` fixed games
+  (``BestResponseCurves``); ``league.analysis.exploitability.plateau`` reads whether the
+  curve is flat at the end of the budget.
 
 Training is the league's own machinery: a one-phase run (``Coordinator`` through
 ``league.rllib.bridge``) in a scratch directory inside the run directory, removed at the
 end, whose only opponent is the frozen player (its saved module loaded into the
 algorithm). Each best response then joins the run's league database (parent: the
-exploited player; its seed and budget recorded) with its module in ``players/`` and its
+exploited player; its seed, budget and start recorded) with its module in ``players/`` and its
 evaluation results, one transaction per seed; it is not in the league's training pool
-nor in its meta-game. What their results say, the player's exploitability, is read by
-``league.analysis.exploitability``; ``python -m league.exploit`` is the command.
+nor in its meta-game. What their results say, the player's exploitability and its margin over
+the league, is read by ``league.analysis.exploitability``; ``python -m league.exploit`` is the
+command. The curve points stay with the scratch run (they are printed, not stored).
 
 Not to be confused with exploiters (kind ``exploiter``, ``league.exploiters`` in the
 config): those train inside the league, against the other side's newest snapshots.
@@ -22,7 +40,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from league.analysis.exploitability import BestResponseResult, Exploitability
+from league.analysis.exploitability import BestResponseResult, CurvePoint, Exploitability, league_baseline
 from league.config import RunConfig
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
@@ -34,26 +52,60 @@ DEFAULT_SEEDS = 3
 # win (0.786 against the scripted team); with 10 it still drifted into interceptions.
 TERMINAL_REWARD = 30.0
 SCRATCH_PREFIX = ".exploit-"
+CURVE_POINTS = 6  # learning-curve points over a best response's budget
 
 
-def best_response_config(run: RunConfig, exploited: Player, seed: int, env_steps: int) -> RunConfig:
-    """The exploited run's config for one phase of the other side learning, seeded, terminal reward on."""
+def best_response_config(run: RunConfig, exploited: Player, seed: int, env_steps: int, from_prior: bool = False) -> RunConfig:
+    """The exploited run's config for one phase of the other side learning, seeded, terminal reward on, the
+    other side from scratch (unless ``from_prior``), the exploited player acting by its mean, a learning curve."""
     data = run.model_dump(mode="json")
+    side = other_side(exploited.side)
     if not data["game"]["terminal_reward"]:
         data["game"]["terminal_reward"] = TERMINAL_REWARD
+    if not from_prior:  # the exploited side's prior stays: it is part of the frozen player
+        data["ppo"][f"{side}_prior"] = "none"
     data["name"] = f"{run.name}-best-response"
     data["seed"] = seed
     data["league"]["mode"] = "protocol"
     # One phase of `env_steps`; its opponent is BestResponseTraining's (the exploited player alone).
-    data["league"]["phases"] = [{"learner": other_side(exploited.side), "env_steps": env_steps, "opponents": "scripted"}]
+    data["league"]["phases"] = [{"learner": side, "env_steps": env_steps, "opponents": "scripted"}]
     data["league"]["attacker_reward_methods"] = None  # one attacker: game.attacker_reward
     data["league"]["exploiters"] = []  # the best response trains alone
     data["league"]["exploiter_phases"] = "all"
     # One opponent: nothing to weigh (PSRO's rule would need a meta-game the scratch run has not).
     data["league"]["pfsp"] = "uniform"
-    data["evaluation"].update(every_iterations=0, workers=0, curve_every_env_steps=0)
+    data["league"]["frozen_players_explore"] = False  # trained against the mean actions it is measured against
+    if data["resources"]["sampler"] == "standard":  # which cannot play a frozen player's mean
+        data["resources"]["sampler"] = "fast"
+    data["evaluation"].update(every_iterations=0, workers=0, curve_every_env_steps=max(1, env_steps // CURVE_POINTS))
     data["checkpoint_every"] = 2**31  # only the final checkpoint (the Coordinator makes it when training is done)
     return RunConfig.model_validate(data)
+
+
+def best_response_curves(base):
+    """The learning curves of a best response: against the exploited player alone, no reference rows.
+
+    (Made from ``league.evaluation.learning_curves.LearningCurves`` on first use: it imports torch.)"""
+    from league.evaluation.learning_curves import LIVE_MODULES, Measurements
+    from league.evaluation.learning_curves import CurvePoint as StoredPoint
+
+    class BestResponseCurves(base):
+        def __init__(self, run: RunConfig, run_dir: Path, exploited: Player, opponent: Player, log):
+            super().__init__(run, run_dir, log)  # run_dir: the exploited player's, where its module is
+            self.exploited = exploited
+            self.opponent = opponent  # its row in the scratch run
+
+        def measure(self, live_module, store, learners, candidates, steps_before, steps_now) -> Measurements:
+            measured = Measurements([], [])
+            for learner in self.due(learners, steps_before, steps_now):
+                path = Path(LIVE_MODULES, learner.name)
+                live = {str(self.run_dir / path): live_module(learner)}
+                stats = self.play(replace(learner, checkpoint=str(path)), self.exploited, live)
+                measured.points.append(StoredPoint(learner, self.opponent, steps_now[learner.name], stats))
+                self.log(self.describe(learner, self.exploited, steps_now[learner.name], stats))
+            return measured
+
+    return BestResponseCurves
 
 
 def best_response_training(base):
@@ -62,10 +114,16 @@ def best_response_training(base):
     (Made from ``league.training.coordinator.Coordinator`` on first use: importing it imports RLlib.)"""
 
     class BestResponseTraining(base):
-        def __init__(self, *args, opponent: Player, name: str | None = None, **kwargs):
+        def __init__(self, *args, opponent: Player, exploited: Player, exploited_run_dir: Path, name: str | None = None,
+                     **kwargs):
+            from league.evaluation.learning_curves import LearningCurves
+
             super().__init__(*args, **kwargs)
-            self.opponent = opponent
+            self.opponent = opponent  # the exploited player's row in the scratch run
             self.name = name  # what the league will call the best response
+            self.curves = best_response_curves(LearningCurves)(
+                self.run, exploited_run_dir, exploited, opponent, lambda text: self.log(text)
+            )
 
         def candidates(self, side: str) -> list[Player]:
             return [self.opponent]
@@ -77,7 +135,8 @@ def best_response_training(base):
 
 
 def build_best_response(
-    run: RunConfig, run_dir: Path, exploited: Player, seed: int, env_steps: int, scratch: Path, name: str | None = None
+    run: RunConfig, run_dir: Path, exploited: Player, seed: int, env_steps: int, scratch: Path, name: str | None = None,
+    from_prior: bool = False,
 ):
     """The coordinator of a new one-phase run in ``scratch``: a fresh learner of the other side
     against ``exploited`` alone (a learned player with its saved weights)."""
@@ -85,7 +144,7 @@ def build_best_response(
     from league.rllib import bridge
     from league.training.coordinator import Coordinator, PhaseState, RunState
 
-    config = best_response_config(run, exploited, seed, env_steps)
+    config = best_response_config(run, exploited, seed, env_steps, from_prior)
     side = other_side(exploited.side)
     store = LeagueStore(scratch, create=True)
     with store.transaction():
@@ -104,18 +163,19 @@ def build_best_response(
         bridge.load_frozen_module(algo, opponent.name, run_dir / exploited.checkpoint)
     coordinator = best_response_training(Coordinator)(
         config, scratch, store, algo, RunState(phase=PhaseState(index=0, side=side, start_iteration=0)),
-        seed=seed, opponent=opponent, name=name,
+        seed=seed, opponent=opponent, exploited=exploited, exploited_run_dir=run_dir, name=name,
     )
     return coordinator
 
 
 def train_best_response(
-    run: RunConfig, run_dir: Path, exploited: Player, seed: int, env_steps: int, scratch: Path, name: str | None = None
-) -> tuple[Path, int, RunConfig]:
-    """Train one best response against ``exploited`` in ``scratch``: its saved module, env steps trained, config."""
+    run: RunConfig, run_dir: Path, exploited: Player, seed: int, env_steps: int, scratch: Path, name: str | None = None,
+    from_prior: bool = False,
+) -> tuple[Path, int, list[CurvePoint]]:
+    """Train one best response against ``exploited`` in ``scratch``: its saved module, env steps trained, learning curve."""
     from league.training.progress import ProgressReporter
 
-    coordinator = build_best_response(run, run_dir, exploited, seed, env_steps, scratch, name)
+    coordinator = build_best_response(run, run_dir, exploited, seed, env_steps, scratch, name, from_prior)
     try:
         progress = ProgressReporter(scratch, 1)
         try:
@@ -124,7 +184,9 @@ def train_best_response(
             progress.close()
         side = other_side(exploited.side)
         trained = coordinator.store.players(side=side, kind="snapshot")[-1]
-        return scratch / trained.checkpoint, coordinator.state.env_steps, coordinator.run
+        curve = [CurvePoint(row["env_steps"], wins_of(side, row["attacker_wins"], row["games"]), row["games"])
+                 for row in coordinator.store.curve_points()]
+        return scratch / trained.checkpoint, coordinator.state.env_steps, curve
     finally:
         coordinator.algo.stop()
         coordinator.store.close()
@@ -144,27 +206,32 @@ def next_seeds(players: list[Player], exploited: Player, k: int) -> list[int]:
 
 def exploit(
     run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Player, seeds: list[int], env_steps: int, episodes: int,
-    say=print,
+    from_prior: bool = False, say=print,
 ) -> Exploitability:
-    """Train, evaluate and record one best response per seed; their results against ``exploited``."""
+    """Train, evaluate and record one best response per seed; their results against ``exploited``, with
+    the league's baselines (which best responses do not change) and each one's learning curve."""
     from league.evaluation.engine import evaluate_pairs
     from league.core.payoff import league_ratings
 
+    baseline = league_baseline(exploited, store.players(), store.newest_evaluation_rows())
+    say(baseline.line())
     results = []
     for seed in seeds:
         started = time.perf_counter()
         side = other_side(exploited.side)
         scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=run_dir))
         try:
-            config = best_response_config(run, exploited, seed, env_steps)
+            config = best_response_config(run, exploited, seed, env_steps, from_prior)
             reward_method = config.game.attacker_reward if side == "attacker" else None
             version = next_version(store.players(), side, reward_method)
             name = Player(id=-1, side=side, kind="best_response", version=version, reward_method=reward_method).name
-            module, trained_steps, config = train_best_response(run, run_dir, exploited, seed, env_steps, scratch, name)
+            module, trained_steps, curve = train_best_response(
+                run, run_dir, exploited, seed, env_steps, scratch, name, from_prior
+            )
             columns = dict(
                 side=side, kind="best_response", version=version,
                 reward_method=reward_method, parent=exploited.id, env_steps=trained_steps, seed=seed,
-                env_step_budget=env_steps,
+                env_step_budget=env_steps, from_prior=from_prior,
             )
             target = run_dir / "players" / name
             partial = target.with_name(name + ".partial")
@@ -190,7 +257,7 @@ def exploit(
         except BaseException:
             shutil.rmtree(target, ignore_errors=True)
             raise
-        result = BestResponseResult(player, exploited, wins_of(side, played.attacker_wins, played.games), played.games)
+        result = BestResponseResult(player, exploited, wins_of(side, played.attacker_wins, played.games), played.games, curve)
         results.append(result)
-        say(f"{result.line()}; {time.perf_counter() - started:.0f} s")
-    return Exploitability(exploited, env_steps, results)
+        say(f"{result.line(baseline)}; {time.perf_counter() - started:.0f} s")
+    return Exploitability(exploited, env_steps, results, baseline)
