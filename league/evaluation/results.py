@@ -12,6 +12,7 @@ from league.config import RunConfig
 from league.core.payoff import aggregate, league_ratings
 from league.core.players import Player
 from league.evaluation.engine import PairEvaluation, evaluate_pairs
+from league.evaluation.learning_curves import GameStats
 from league.state.store import LeagueStore
 
 
@@ -25,6 +26,7 @@ def record_evaluations(store: LeagueStore, iteration: int, results: list[PairEva
     (the league's ratings never see the test games)."""
     for r in results:
         store.record_evaluation(iteration, r.outcome_rows(), EVALUATION_SOURCE[games])
+        store.record_evaluation_stats(iteration, EVALUATION_SOURCE[games], r.attacker.id, r.team.id, GameStats.of(r.result).columns())
     if games == "dev":
         store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
 

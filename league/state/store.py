@@ -111,6 +111,13 @@ CREATE TABLE IF NOT EXISTS curve_references (  -- learning curves: a reference p
     player INTEGER REFERENCES players(id),  -- the version-0 snapshot of an 'untrained' row
     {stats}
 );
+CREATE TABLE IF NOT EXISTS evaluation_stats (  -- a pair's newest evaluation: returns beside its wins
+    iteration INTEGER NOT NULL,
+    source TEXT NOT NULL,            -- as in matches: 'evaluation' (dev games) or 'test'
+    attacker INTEGER NOT NULL REFERENCES players(id),
+    team INTEGER NOT NULL REFERENCES players(id),
+    {stats}
+);
 """.format(stats=CURVE_STATS_SQL)
 
 TABLES = ("players", "matches", "ratings", "iterations", "checkpoints", "meta")
@@ -166,7 +173,7 @@ class LeagueStore:
             if "returns" not in columns:  # a database from before returns were recorded
                 self.db.execute("ALTER TABLE iterations ADD COLUMN returns TEXT NOT NULL DEFAULT '{}'")
             tables = {name for (name,) in self.db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
-            if "curve_points" not in tables:  # a database from before learning curves were recorded
+            if not {"curve_points", "evaluation_stats"} <= tables:  # from before curves, or evaluations' returns
                 self.db.executescript(f"BEGIN; {SCHEMA} COMMIT;")
             columns = {row[1] for row in self.db.execute("PRAGMA table_info(players)")}
             for column in ("seed", "env_step_budget", "from_prior"):  # a database from before best responses, or their start
@@ -286,6 +293,20 @@ class LeagueStore:
             )
         self.record_outcomes(iteration, source, rows)
 
+    def record_evaluation_stats(self, iteration: int, source: str, attacker: int, team: int, stats: dict[str, float]) -> None:
+        """A pair's returns and wins on its fixed games (``CURVE_STATS`` columns), replacing the pair's earlier ones."""
+        self.db.execute("DELETE FROM evaluation_stats WHERE source = ? AND attacker = ? AND team = ?", (source, attacker, team))
+        self.db.execute(
+            f"INSERT INTO evaluation_stats (iteration, source, attacker, team, {', '.join(CURVE_STATS)}) "
+            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
+            (iteration, source, attacker, team, *[stats[c] for c in CURVE_STATS]),
+        )
+
+    def evaluation_stats(self, source: str = "evaluation") -> dict[tuple[int, int], dict[str, float]]:
+        """``(attacker id, team id)`` -> the ``CURVE_STATS`` columns of the pair's newest evaluation on ``source``'s games."""
+        cursor = self.db.execute(f"SELECT attacker, team, {', '.join(CURVE_STATS)} FROM evaluation_stats WHERE source = ?", (source,))
+        return {(a, t): dict(zip(CURVE_STATS, values)) for a, t, *values in cursor.fetchall()}
+
     def newest_evaluation_rows(self, source: str = "evaluation") -> list[OutcomeCount]:
         """The outcomes of each pair's newest evaluation on the dev games (or ``source`` ``test``)."""
         return self._outcome_counts(
@@ -380,7 +401,7 @@ class LeagueStore:
     def rollback_after(self, iteration: int) -> None:
         """Forget everything written after ``iteration`` (work a resume will redo)."""
         with self.transaction():
-            for table in ("matches", "ratings", "curve_points", "curve_references"):
+            for table in ("matches", "ratings", "curve_points", "curve_references", "evaluation_stats"):
                 self.db.execute(f"DELETE FROM {table} WHERE iteration > ?", (iteration,))
             self.db.execute("DELETE FROM iterations WHERE iteration > ?", (iteration,))
             self.db.execute("DELETE FROM checkpoints WHERE iteration > ?", (iteration,))

@@ -14,6 +14,10 @@ plays only what is missing. Each comparison is a row:
   final attacker beside its version 0 against every team;
 * the range of Nash weight the test games' meta-game allows on the trained players of each side.
 
+Each comparison is made twice: on the win rate, and on the player's own reward (an
+attacker's return under its reward method, the team's T plus D return, with the game's
+terminal reward; the reference's games measured by the same yardstick).
+
 Within one seed a row's verdict compares the two 95% Wilson intervals (better, even, worse);
 over seeds, the seed mean gets a Student-t interval and the paired t-test over seeds of
 (trained minus reference) decides (``league.analysis.statistics``).
@@ -28,10 +32,10 @@ import numpy as np
 
 from league.analysis.nash import meta_game
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
-from league.core.payoff import aggregate
 from league.core.players import Player
 from league.evaluation.engine import evaluate_pairs
 from league.evaluation.panel import add_scripted, every_scripted_player
+from league.evaluation.learning_curves import GameStats
 from league.evaluation.results import last_iteration, record_evaluations
 from league.state.run_dir import open_run
 
@@ -85,6 +89,8 @@ class Row:
     side: str  # the side ``player`` and ``reference`` play
     attacker_wins: tuple[int, int]  # (wins, games) of the attacker in player's pair
     reference_attacker_wins: tuple[int, int]
+    own_return: float  # the player's mean return per game by its own reward
+    reference_own_return: float  # the reference's, by the player's reward
 
     @property
     def rate(self) -> float:
@@ -93,6 +99,10 @@ class Row:
     @property
     def reference_rate(self) -> float:
         return self.reference_attacker_wins[0] / self.reference_attacker_wins[1]
+
+    @property
+    def return_gain(self) -> float:
+        return self.own_return - self.reference_own_return
 
     @property
     def gain(self) -> float:
@@ -124,30 +134,37 @@ def measure_on_test_games(run_dir: Path, episodes: int, untrained: bool = True, 
         add_scripted(store, every_scripted_player())
         final = FinalPlayers.of(store.players())
         attackers, teams = final.sides(untrained)
-        recorded = aggregate(store.newest_evaluation_rows("test"))
-        missing = [(a, t) for a in attackers for t in teams if recorded.get((a.id, t.id), (0, 0))[1] != episodes]
+        recorded = store.evaluation_stats("test")
+        missing = [(a, t) for a in attackers for t in teams if recorded.get((a.id, t.id), {}).get("games") != episodes]
         if missing:
             results = evaluate_pairs(run.game, run_dir, missing, episodes, workers, games="test")
             with store.transaction():
                 record_evaluations(store, last_iteration(store), results, "test")
-            recorded = aggregate(store.newest_evaluation_rows("test"))
+            recorded = store.evaluation_stats("test")
     finally:
         store.close()
-    return comparisons(final, recorded, untrained), nash_rows(attackers, teams, recorded)
+    stats = {pair: GameStats.from_row(row) for pair, row in recorded.items()}
+    table = {pair: (s.attacker_wins, s.games) for pair, s in stats.items()}
+    return comparisons(final, stats, untrained, run.game.terminal_reward), nash_rows(attackers, teams, table)
 
 
-def comparisons(final: FinalPlayers, table: dict, untrained: bool) -> list[Row]:
-    """Every row of one run from its test-game results ``{(attacker id, team id): (wins, games)}``."""
+def comparisons(final: FinalPlayers, stats: dict[tuple[int, int], GameStats], untrained: bool, terminal_reward: float) -> list[Row]:
+    """Every row of one run from its test-game results by ``(attacker id, team id)``."""
 
     def row(player: Player, against: Player, reference: Player) -> Row:
         pair = (lambda p: (p, against)) if player.side == "attacker" else (lambda p: (against, p))
-        a, t = pair(player)
-        ra, rt = pair(reference)
-        return Row(player.name, against.name, reference.name, player.side, table[(a.id, t.id)], table[(ra.id, rt.id)])
+        mine, theirs = stats[ids(*pair(player))], stats[ids(*pair(reference))]
+
+        def own(s: GameStats) -> float:
+            if player.side == "attacker":
+                return s.attacker_return(player.reward_method, terminal_reward)
+            return s.team_return(terminal_reward)
+
+        return Row(player.name, against.name, reference.name, player.side, (mine.attacker_wins, mine.games),
+                   (theirs.attacker_wins, theirs.games), own(mine), own(theirs))
 
     def rate(attacker: Player, team: Player) -> float:
-        wins, games = table[(attacker.id, team.id)]
-        return wins / games
+        return stats[ids(attacker, team)].win_rate("attacker")
 
     rows = []
     for attacker in final.attackers.values():
@@ -163,6 +180,10 @@ def comparisons(final: FinalPlayers, table: dict, untrained: bool) -> list[Row]:
         for method, attacker in final.attackers.items():
             rows += [row(attacker, team, final.first_attackers[method]) for team in teams]
     return rows
+
+
+def ids(attacker: Player, team: Player) -> tuple[int, int]:
+    return attacker.id, team.id
 
 
 def nash_rows(attackers: list[Player], teams: list[Player], table: dict) -> list[NashRow]:
@@ -185,33 +206,43 @@ def seed_verdict(gains: list[float]) -> tuple[float, str]:
 
 
 def table(per_seed: dict[int, tuple[list[Row], list[NashRow]]]) -> str:
-    """Markdown: a row per comparison, a column per seed, the mean with its interval, the test over seeds."""
+    """Markdown: the win-rate table (a row per comparison, a column per seed, the mean with its
+    interval, the test over seeds, then the Nash ranges), and the same comparisons on the own reward."""
     seeds = sorted(per_seed)
-    lines = [
-        "| trained player | against | " + " | ".join(f"seed {s}" for s in seeds)
-        + f" | mean [{SEED_INTERVAL}] | reference | its rate (mean) | paired t-test p | over seeds |",
-        "| --- | --- | " + " | ".join("---" for _ in seeds) + " | --- | --- | --- | --- | --- |",
+    columns = " | ".join(f"seed {s}" for s in seeds)
+    rule = " | ".join("---" for _ in seeds)
+    rates = [
+        f"| trained player | against | {columns} | mean [{SEED_INTERVAL}] | reference | its rate (mean) | paired t-test p | over seeds |",
+        f"| --- | --- | {rule} | --- | --- | --- | --- | --- |",
     ]
-    first = per_seed[seeds[0]][0]
-    for index, head in enumerate(first):
+    returns = [
+        f"| trained player | against | {columns} | mean [{SEED_INTERVAL}] | reference | its return (mean) | paired t-test p | over seeds |",
+        f"| --- | --- | {rule} | --- | --- | --- | --- | --- |",
+    ]
+    for index, head in enumerate(per_seed[seeds[0]][0]):
         rows = [per_seed[s][0][index] for s in seeds]
-        cells = []
-        for r in rows:
-            low, high = wilson_interval(*r.attacker_wins)
-            cells.append(f"{r.rate:.3f} [{low:.3f}, {high:.3f}] {r.verdict()}")
-        rates = [r.rate for r in rows]
-        p, verdict = seed_verdict([r.gain for r in rows])
-        low, high = mean_interval(rates)
-        lines.append(
-            f"| {head.player} | {head.against} | " + " | ".join(cells)
-            + f" | {np.mean(rates):.3f} [{low:.3f}, {high:.3f}] | {head.reference} | "
-            + f"{np.mean([r.reference_rate for r in rows]):.3f} | {p:.3g} | **{verdict}** |"
-        )
+        cells = [f"{r.rate:.3f} [{wilson_interval(*r.attacker_wins)[0]:.3f}, {wilson_interval(*r.attacker_wins)[1]:.3f}] {r.verdict()}"
+                 for r in rows]
+        rates.append(summary_line(head, cells, [r.rate for r in rows], [r.reference_rate for r in rows],
+                                  [r.gain for r in rows], "{:.3f}"))
+        returns.append(summary_line(head, [f"{r.own_return:.1f}" for r in rows], [r.own_return for r in rows],
+                                    [r.reference_own_return for r in rows], [r.return_gain for r in rows], "{:.1f}"))
     for index, head in enumerate(per_seed[seeds[0]][1]):
         ranges = [per_seed[s][1][index] for s in seeds]
-        lines.append(
+        rates.append(
             f"| trained {head.side}s | Nash weight [least, most] | "
             + " | ".join(f"[{n.low:.3f}, {n.high:.3f}]" for n in ranges)
             + f" | least over seeds {min(n.low for n in ranges):.3f} | | | | |"
         )
-    return "\n".join(lines) + "\n"
+    return ("Attacker win rate, 95% Wilson interval and verdict within each seed's test games:\n\n" + "\n".join(rates)
+            + "\n\nThe same comparisons on the player's own reward (mean return per game):\n\n" + "\n".join(returns) + "\n")
+
+
+def summary_line(head: Row, cells: list[str], values: list[float], references: list[float], gains: list[float], number: str) -> str:
+    """One comparison's row: the per-seed cells, then the mean with its interval, the reference, the test."""
+    low, high = mean_interval(values)
+    p, verdict = seed_verdict(gains)
+    mean = number.format(float(np.mean(values)))
+    return (f"| {head.player} | {head.against} | " + " | ".join(cells)
+            + f" | {mean} [{number.format(low)}, {number.format(high)}] | {head.reference} | "
+            + f"{number.format(float(np.mean(references)))} | {p:.3g} | **{verdict}** |")

@@ -3,6 +3,7 @@
 import pytest
 
 from league.core.players import Player
+from league.evaluation.learning_curves import GameStats
 from league.evaluation.panel import every_scripted_player
 from league.state.run_dir import open_run
 from league.study import main as study_main
@@ -31,13 +32,22 @@ RATES = {
     (A0, PAPER): 40, (A0, STRAIGHT): 80, (A0, T0): 50, (A0, T1): 10,
     (A1, PAPER): 70, (A1, STRAIGHT): 84, (A1, T0): 60, (A1, T1): 15,
 }
-TABLE = {(a.id, t.id): (wins, 100) for (a, t), wins in RATES.items()}
+
+
+def stats(wins: int) -> GameStats:
+    # Returns made up so that each pair's own returns tell the pairs apart: A's method-2 return
+    # per game is wins / 10, T's and D's -wins / 20 each.
+    return GameStats(games=100, attacker_wins=wins, attacker_return_1=0.0, attacker_return_2=wins / 10,
+                     attacker_return_3=0.0, targeter_return=-wins / 20, defender_return=-wins / 20, mean_steps=50.0)
+
+
+TABLE = {(a.id, t.id): stats(wins) for (a, t), wins in RATES.items()}
 
 
 def test_each_trained_player_is_set_beside_the_best_scripted_player_of_its_side():
     final = FinalPlayers.of([LI, PP, PAPER, STRAIGHT, A0, A1, T0, T1])
     assert (final.attackers, final.team, final.first_attackers, final.first_team) == ({2: A1}, T1, {2: A0}, T0)
-    rows = {(r.player, r.against): r for r in comparisons(final, TABLE, untrained=False)}
+    rows = {(r.player, r.against): r for r in comparisons(final, TABLE, untrained=False, terminal_reward=10.0)}
     # The attacker against each scripted team, beside the scripted attacker best against it.
     paper = rows[(A1.name, PAPER.name)]
     assert (paper.reference, paper.rate, paper.reference_rate, paper.verdict()) == (LI.name, 0.70, 0.40, "better")
@@ -47,12 +57,16 @@ def test_each_trained_player_is_set_beside_the_best_scripted_player_of_its_side(
     li = rows[(T1.name, LI.name)]
     assert (li.reference, li.rate, li.reference_rate, li.gain, li.verdict()) == (PAPER.name, 0.10, 0.40, pytest.approx(0.30), "better")
     assert rows[(T1.name, A1.name)].reference == PAPER.name
+    # On the own reward: A's method-2 return plus 10 per win and -10 per loss (the terminal
+    # reward); the team's T + D return minus 10 each per A win and plus 10 each per loss.
+    assert (paper.own_return, paper.reference_own_return) == (pytest.approx(7.0 + 4.0), pytest.approx(4.0 - 2.0))
+    assert (li.own_return, li.reference_own_return) == (pytest.approx(-1.0 + 16.0), pytest.approx(-4.0 + 4.0))
     assert len(rows) == 2 + 3
 
 
 def test_untrained_rows_compare_with_version_zero_against_every_opponent():
     final = FinalPlayers.of([LI, PP, PAPER, STRAIGHT, A0, A1, T0, T1])
-    rows = comparisons(final, TABLE, untrained=True)[5:]
+    rows = comparisons(final, TABLE, untrained=True, terminal_reward=10.0)[5:]
     assert {(r.player, r.reference) for r in rows} == {(T1.name, T0.name), (A1.name, A0.name)}
     assert {r.against for r in rows if r.player == T1.name} == {LI.name, PP.name, A1.name, A0.name}
     worse = next(r for r in rows if r.player == A1.name and r.against == T1.name)
@@ -64,9 +78,10 @@ def test_over_seeds_the_paired_test_decides():
     assert seed_verdict([-0.10, -0.12, -0.09, -0.11, -0.10])[1] == "worse"
     p, verdict = seed_verdict([0.30, -0.20, 0.25, -0.30, 0.01])
     assert verdict == "even" and p > 0.5
-    rows = {s: ([Row("a", "b", "c", "attacker", (50 + s, 100), (40, 100))], []) for s in range(5)}
-    text = table(rows)
-    assert "| a | b | 0.500 [" in text and "**better** |" in text
+    rows = {s: ([Row("a", "b", "c", "attacker", (50 + s, 100), (40, 100), 3.0 - s, 5.0)], []) for s in range(5)}
+    wins, own = table(rows).split("own reward")
+    assert "| a | b | 0.500 [" in wins and "**better** |" in wins
+    assert "| a | b | 3.0 | 2.0 |" in own and "| 1.0 [" in own and "**worse** |" in own
 
 
 def test_a_run_is_measured_on_the_test_games_once(run_copy):
