@@ -52,3 +52,9 @@ def test_the_link_check_finds_a_missing_page_and_a_missing_heading(tmp_path):
 
 def test_the_readme_is_short():
     assert len((ROOT / "README.md").read_text().splitlines()) < README_MAX_LINES
+
+
+def test_every_results_page_stays_under_200_lines():
+    # A page is one result (question, answer, command, table, figure, machine and commit); its history is in git.
+    long = {page.name: n for page in (ROOT / "docs" / "results").glob("*.md") if (n := len(page.read_text().splitlines())) >= 200}
+    assert long == {}
