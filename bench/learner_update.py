@@ -78,7 +78,8 @@ def main() -> None:
             learner.module.set_state(start["rl_module"])
             for group in learner.get_optimizer(TEAM.name).param_groups:
                 group["foreach"] = arm != "rllib"  # RLlib's Adam steps tensor by tensor
-            learner.module[TEAM.name].model_config["bf16"] = arm == "bf16"
+            team = learner.module[TEAM.name]
+            team.settings = team.settings.model_copy(update={"bf16": arm == "bf16"})
             method = PPOTorchLearner.update if arm == "rllib" else type(learner).update
             fresh = training_batch([data], env_steps=config.total_train_batch_size)  # RLlib's shuffles it in place
             if profiler and arm == "league":

@@ -3,7 +3,8 @@
 SQL only in the store; no import cycles among league's modules or packages; no module
 imports a command (the modules at the top of ``league/`` with a ``__main__`` block);
 ``league/core/`` without Ray or torch; ``ray.rllib`` only in ``league/rllib/``; who won
-only in ``league/core/payoff.py``; the README's layout table lists the packages, docs/architecture.md's every module.
+only in ``league/core/payoff.py``; RLlib's ``model_config`` read only by ``league/rllib/module_settings.py``; the
+README's layout table lists the packages, docs/architecture.md's every module.
 
 Each rule is a scan of the source files (``envs/``, ``league/``, ``bench/``) and a test
 that the scan finds a planted violation, so a rule that stopped matching would fail.
@@ -282,6 +283,37 @@ def test_the_who_won_scan_finds_the_old_copies(tmp_path):
     assert [v.split(":")[0] for v in who_won_copies(root)] == [
         "bench/league_quality.py", "league/analysis/generations.py", "league/curves.py", "league/exploit.py",
         "league/replay.py",
+    ]
+
+
+# ---------------------------------------------------------------- module settings
+# RLlib's model_config dict read by key (a misspelt key would read as "off"), aliased to be read
+# so, or written as a literal: only its parser may, the rest read `module.settings` by attribute.
+MODEL_CONFIG_BY_KEY = re.compile(
+    r"\bmodel_config\s*(\[|\.\s*\w+\(|or\b|=\s*(\{|dict\())"
+    r"|=\s*[\w.\[\]\"']*\.model_config\s*(or\b|$)"
+)
+MODULE_SETTINGS_HOME = "league/rllib/module_settings.py"
+
+
+def test_module_settings_are_read_only_through_their_type():
+    assert violations(ROOT, MODEL_CONFIG_BY_KEY, {MODULE_SETTINGS_HOME}) == []
+
+
+def test_the_module_settings_scan_finds_model_config_read_by_key(tmp_path):
+    root = plant(tmp_path, {
+        MODULE_SETTINGS_HOME: "given = {k: v for k, v in (model_config or {}).items()}\n",
+        "league/rllib/env_runner.py": 'explores = module.model_config.get("explore_when_forzen", True)\n',
+        "league/rllib/learner.py": 'bf16 = bool(self.module[m].model_config["bf16"])\n',
+        "league/rllib/callbacks.py": 'method = (rl_module[module_id].model_config or {}).get("reward_method")\n',
+        "league/rllib/modules.py": "cfg = self.model_config\nsettings = ActorCriticSettings.from_model_config(self.model_config)\n",
+        "league/rllib/bridge.py": 'spec = RLModuleSpec(model_config={"agent": agent})\nspec = RLModuleSpec(model_config=s.as_model_config())\n',
+        "bench/learner_update.py": 'learner.module[TEAM.name].model_config["bf16"] = arm == "bf16"\n',
+        "league/config.py": "model_config = ConfigDict(extra=\"forbid\")\n",  # pydantic's own: fine
+    })
+    assert [":".join(v.split(":")[:2]) for v in violations(root, MODEL_CONFIG_BY_KEY, {MODULE_SETTINGS_HOME})] == [
+        "bench/learner_update.py:1", "league/rllib/bridge.py:1", "league/rllib/callbacks.py:1",
+        "league/rllib/env_runner.py:1", "league/rllib/learner.py:1", "league/rllib/modules.py:1",
     ]
 
 

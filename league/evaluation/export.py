@@ -102,7 +102,7 @@ def metadata(run: Any, player: Player, module: Any) -> dict[str, Any]:
         },
         "game": run.game.model_dump(),
         "versions": {"torch": torch.__version__, "ray": ray.__version__, "package": "target-defense-league 0.1.0"},
-        "hidden": list(module.model_config["hidden"]),
+        "hidden": list(module.settings.hidden),
     }
 
 

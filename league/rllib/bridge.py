@@ -33,6 +33,7 @@ from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
 from league.rllib.env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, SeededEnvRunner, seed_iteration
 from league.rllib import compat
 from league.rllib.learner import LeaguePPOLearner
+from league.rllib.module_settings import ActorCriticSettings, ScriptedSettings
 from league.rllib.modules import ActorCriticModule, ScriptedModule
 from ray.rllib.algorithms.algorithm import Algorithm
 from ray.rllib.algorithms.ppo import PPO, PPOConfig
@@ -68,31 +69,37 @@ def actor_inputs(run: RunConfig, agent: str) -> int:
     return observation_size(run.game, AGENTS.index(agent))
 
 
-def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) -> RLModuleSpec:
+def learner_settings(run: RunConfig, side: str, reward_method: int | None = None) -> ActorCriticSettings:
+    """What the ``side`` learner's module is built with and how it is paid."""
     agent = "attacker" if side == "attacker" else "targeter"
     gamma, lambda_ = run.ppo.discount(side)
+    team = side == "team"
+    return ActorCriticSettings(
+        actor_inputs=actor_inputs(run, agent),
+        critic="global" if team else "local",
+        hidden=run.ppo.hidden_of(side),
+        prior=run.ppo.team_prior if team else run.ppo.attacker_prior,
+        heading_cosines=run.ppo.attacker_heading_cosines and not team,
+        game=run.game,
+        bf16=run.ppo.bf16,
+        reward_method=reward_method,
+        gamma=gamma,
+        lambda_=lambda_,
+        targeter_shaping=run.ppo.targeter_shaping if team else 0.0,
+        defender_shaping=run.ppo.defender_shaping if team else 0.0,
+        attacker_win_reward=0.0 if team else run.ppo.win_reward(reward_method),
+        team_reward=run.ppo.team_reward if team else "own",
+        explore_when_frozen=run.league.frozen_players_explore,
+    )
+
+
+def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) -> RLModuleSpec:
+    agent = "attacker" if side == "attacker" else "targeter"
     return RLModuleSpec(
         module_class=ActorCriticModule,
         observation_space=policy_input_space(run.game, agent),
         action_space=action_space(run.game),
-        model_config={
-            "actor_inputs": actor_inputs(run, agent),
-            "critic": "local" if side == "attacker" else "global",
-            "hidden": run.ppo.hidden_of(side),
-            "bf16": run.ppo.bf16,  # asked for; the learner computes in bf16 where the CPU has it natively
-            "reward_method": reward_method,
-            # The fast sampler's GAE reads them per module (the team's may differ: `PPOSettings.team_gamma`).
-            "gamma": gamma,
-            "lambda_": lambda_,
-            "targeter_shaping": run.ppo.targeter_shaping if side == "team" else 0.0,
-            "defender_shaping": run.ppo.defender_shaping if side == "team" else 0.0,
-            "attacker_win_reward": run.ppo.win_reward(reward_method) if side == "attacker" else 0.0,
-            "team_reward": run.ppo.team_reward if side == "team" else "own",
-            "explore_when_frozen": run.league.frozen_players_explore,  # read by the fast sampler
-            "prior": run.ppo.attacker_prior if side == "attacker" else run.ppo.team_prior,
-            "heading_cosines": run.ppo.attacker_heading_cosines and side == "attacker",
-            "game": run.game.model_dump(),
-        },
+        model_config=learner_settings(run, side, reward_method).as_model_config(),
     )
 
 
@@ -106,7 +113,9 @@ def scripted_spec(run: RunConfig, agent: str, name: str) -> RLModuleSpec:
         module_class=ScriptedModule,
         observation_space=policy_input_space(run.game, agent),
         action_space=action_space(run.game),
-        model_config={"agent": agent, "name": name, "game": run.game.model_dump(), "actor_inputs": actor_inputs(run, agent)},
+        model_config=ScriptedSettings(
+            agent=agent, name=name, game=run.game, actor_inputs=actor_inputs(run, agent)
+        ).as_model_config(),
     )
 
 

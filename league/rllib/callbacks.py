@@ -8,6 +8,7 @@ from typing import Any
 from envs.agents import AGENTS
 from league.rllib import compat
 from league.rllib.env_runner import log_outcome
+from league.rllib.modules import ActorCriticModule
 from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.connectors.connector_v2 import ConnectorV2
 
@@ -26,7 +27,9 @@ class AttackerRewardByMethod(ConnectorV2):
             module_id = episode.module_for("attacker")
             if attacker is None or module_id not in rl_module:
                 continue
-            method = (rl_module[module_id].model_config or {}).get("reward_method")
+            module = rl_module[module_id]
+            # A scripted attacker keeps what the env paid.
+            method = module.settings.reward_method if isinstance(module, ActorCriticModule) else None
             real_steps = len(attacker) - 1  # the last step is PPO's phantom bootstrap step
             if not method or real_steps <= 0:
                 continue

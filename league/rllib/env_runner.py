@@ -52,7 +52,7 @@ from envs.vector_env import TargetDefenseVectorEnv
 from league.core.payoff import attacker_won_games
 from league.core.seeding import Purpose, stream, stream_seed
 from league.rllib import compat
-from league.rllib.modules import ScriptedModule
+from league.rllib.modules import ActorCriticModule, ScriptedModule
 from league.rollout.games import Policy, Rollout, Rows, ScriptedOnState
 from league.rollout.train_batch import gae, potential_shaping
 from ray.rllib.callbacks.utils import make_callback
@@ -334,8 +334,10 @@ class BatchedEnvRunner(SeededEnvRunner):
             if on_core and isinstance(module, ScriptedModule):
                 return ScriptedOnState(module.name)
 
-            # `LeagueSettings.frozen_players_explore`: a frozen snapshot may play its mean.
-            explores = explore and (module.model_config.get("explore_when_frozen", True) or self._is_trained(module_id))
+            # `LeagueSettings.frozen_players_explore`: a frozen snapshot may play its mean (a scripted
+            # player acts alike either way).
+            frozen_explores = module.settings.explore_when_frozen if isinstance(module, ActorCriticModule) else True
+            explores = explore and (frozen_explores or self._is_trained(module_id))
 
             def forward(obs: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
                 outputs = _forward(module, torch.from_numpy(obs), explores)
@@ -434,16 +436,14 @@ class BatchedEnvRunner(SeededEnvRunner):
 
     def _training_data(self, rows: Rows, t: int) -> dict[str, dict[str, np.ndarray]]:
         """Every trained module's PPO columns from rows ``0..t`` (see ``sample_training_data``)."""
-        config = self.config
         ended = (rows.outcome[:t] != int(Outcome.RUNNING)).astype(np.float64)
         data: dict[str, dict[str, list[np.ndarray]]] = {}
         for index, module_id in enumerate(self.rollout.module_ids):
             if not self._is_trained(module_id):
                 continue
             module = self.module[module_id]
-            module_config = module.model_config or {}
-            method = module_config.get("reward_method")
-            gamma, lambda_ = module_config.get("gamma", config.gamma), module_config.get("lambda_", config.lambda_)
+            settings = module.settings
+            method, gamma, lambda_ = settings.reward_method, settings.gamma, settings.lambda_
             for i, agent in enumerate(AGENTS):
                 played = rows.modules[:t, :, i] == index  # (t, G)
                 if not played.any():
@@ -456,14 +456,14 @@ class BatchedEnvRunner(SeededEnvRunner):
                     values[observed] = module.compute_values({Columns.OBS: torch.from_numpy(obs[observed])}).numpy()
                 if agent == "attacker" and method:
                     rewards = rows.attacker_rewards[:t, :, method - 1]  # this module's reward method
-                    win_reward = module_config.get("attacker_win_reward")
+                    win_reward = settings.attacker_win_reward
                     if win_reward:  # `PPOSettings.attacker_win_reward`: +R on the step A won a game, -R on one it lost
                         rewards = rewards + win_reward * np.where(attacker_won_games(rows.outcome[:t]), 1.0, -1.0) * ended
-                elif module_config.get("team_reward") == "shared":  # `PPOSettings.team_reward`
+                elif settings.team_reward == "shared":  # `PPOSettings.team_reward`
                     rewards = rows.rewards["targeter"][:t] + rows.rewards["defender"][:t]
                 else:
                     rewards = rows.rewards[agent][:t]
-                shaping = module_config.get(f"{agent}_shaping")  # `PPOSettings.targeter_shaping`, `defender_shaping`
+                shaping = settings.shaping_of(agent)  # `PPOSettings.targeter_shaping`, `defender_shaping`
                 if agent in SHAPED_DISTANCE and shaping:
                     distance = SHAPED_DISTANCE[agent](self.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
                     rewards = rewards + potential_shaping(-shaping * distance, ended, gamma)

@@ -147,7 +147,7 @@ class LeaguePPOLearner(PPOTorchLearner):
         modules = [m for m in batch.policy_batches if self.should_module_be_updated(m, batch)]
         inputs = {m: LossRows(batch.policy_batches[m], self.device) for m in modules}
         coefficients = {m: self._ppo_coefficients(m) for m in modules}
-        bf16 = {m: bool(self.module[m].model_config.get("bf16")) and compat.native_bf16() for m in modules}  # `PPOSettings.bf16`
+        bf16 = {m: self.module[m].settings.bf16 and compat.native_bf16() for m in modules}  # `PPOSettings.bf16`
         trained = [p for m in modules for _, o in self.get_optimizers_for_module(m) for g in o.param_groups for p in g["params"]]
         for m in modules:
             self.module[m].train()  # as RLlib's forward_train

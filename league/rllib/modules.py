@@ -40,6 +40,7 @@ from envs.observations import (
     split_policy_input,
 )
 from envs.scripted import SHELTER_DISTANCE, act_from_state
+from league.rllib.module_settings import ActorCriticSettings, ScriptedSettings
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.core.rl_module.torch import TorchRLModule
@@ -208,22 +209,20 @@ PRIORS = {
 
 
 class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
-    """PPO actor-critic; ``model_config``: ``actor_inputs``, ``critic`` ("global"|"local"), ``hidden``,
-    and optionally ``prior`` (a name of ``PRIORS`` or "none") with ``game`` (GameConfig fields)."""
+    """PPO actor-critic built as its ``settings`` say (``ActorCriticSettings``, from ``model_config``)."""
 
     def setup(self) -> None:
-        cfg = self.model_config
-        self.actor_inputs = int(cfg["actor_inputs"])
-        self.critic_input = cfg["critic"]
+        self.settings = settings = ActorCriticSettings.from_model_config(self.model_config)
+        self.actor_inputs = settings.actor_inputs
+        self.critic_input = settings.critic
         total = self.observation_space.shape[0]
         critic_inputs = total - self.actor_inputs + ROLE_SIZE if self.critic_input == "global" else self.actor_inputs
         actions = self.action_space.shape[0]
-        hidden = list(cfg["hidden"])
-        features = HeadingCosines() if cfg.get("heading_cosines", False) else None
+        hidden = list(settings.hidden)
+        features = HeadingCosines() if settings.heading_cosines else None
         self.pi = mlp(self.actor_inputs, hidden, actions, last_gain=0.01, features=features)
-        prior = cfg.get("prior", "none")
-        if prior != "none":
-            self.pi = ResidualActor(PRIORS[prior](GameConfig(**cfg["game"])), self.pi)
+        if settings.prior != "none":
+            self.pi = ResidualActor(PRIORS[settings.prior](settings.game), self.pi)
         self.log_std = nn.Parameter(torch.full((actions,), INITIAL_LOG_STD))
         self.vf = mlp(critic_inputs, hidden, 1, last_gain=1.0)
 
@@ -252,13 +251,12 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
 
 
 class ScriptedModule(TorchRLModule):
-    """A scripted player; ``model_config``: ``agent``, ``name``, ``game`` (GameConfig fields), ``actor_inputs``."""
+    """A scripted player, the one its ``settings`` name (``ScriptedSettings``, from ``model_config``)."""
 
     def setup(self) -> None:
-        cfg = self.model_config
-        self.game_config = GameConfig(**cfg["game"])
-        self.agent, self.name = cfg["agent"], cfg["name"]
-        self.actor_inputs = int(cfg["actor_inputs"])
+        self.settings = settings = ScriptedSettings.from_model_config(self.model_config)
+        self.game_config, self.agent, self.name = settings.game, settings.agent, settings.name
+        self.actor_inputs = settings.actor_inputs
 
     def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
         obs = batch[Columns.OBS]

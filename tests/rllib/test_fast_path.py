@@ -1,5 +1,6 @@
 """The fast path: PPO's training batch from the sampler's arrays equals RLlib's from episodes."""
 
+import contextlib
 import copy
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal
 from league.core.match_plan import MatchPlan
 from league.rllib import learner as learner_module
 from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO, training_batch
-from league.rllib.bridge import build_config, episode_outcomes, learner_spec, set_trainable
+from league.rllib.bridge import build_config, episode_outcomes, learner_settings, learner_spec, set_trainable
 from league.rollout.train_batch import gae, minibatch_rows, potential_shaping
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
@@ -218,21 +219,27 @@ def test_the_learning_rate_follows_its_schedule_over_env_steps(algo):  # `algo`:
         own.stop()
 
 
+@contextlib.contextmanager
+def changed_settings(module, **changes):
+    """``module`` with its settings (``ActorCriticSettings``) changed as given, then as it was."""
+    before = module.settings
+    module.settings = before.model_copy(update=changes)
+    try:
+        yield
+    finally:
+        module.settings = before
+
+
 def training_data_with_setting(algo, key, value, module_id=TEAM.name):
     """One play of the attacker and the team learning; its training data as the ``module_id``
-    module (by default the team's) is configured, and with ``model_config[key] = value``."""
+    module (by default the team's) is configured, and with its setting ``key`` set to ``value``."""
     set_trainable(algo, [ATTACKER.name, TEAM.name])
     runner = algo.env_runner
     runner._reset_all()
     _, rows, t = runner._play(40, None, True, False)
-    module_config = runner.module[module_id].model_config
-    before = module_config[key]
     plain = runner._training_data(rows, t)
-    module_config[key] = value
-    try:
+    with changed_settings(runner.module[module_id], **{key: value}):
         changed = runner._training_data(rows, t)
-    finally:
-        module_config[key] = before
     return runner, rows, t, plain, changed
 
 
@@ -283,8 +290,8 @@ def test_the_attackers_win_reward_goes_to_the_listed_reward_methods_only():
     ppo = {**RUN.ppo.model_dump(), "attacker_win_reward": 70.0}
     for methods, paid in ((None, [70.0, 70.0, 70.0]), ([2, 3], [0.0, 70.0, 70.0])):
         run = RunConfig(**{**RUN.model_dump(), "ppo": {**ppo, "attacker_win_reward_methods": methods}})
-        assert [learner_spec(run, "attacker", m).model_config["attacker_win_reward"] for m in (1, 2, 3)] == paid
-        assert learner_spec(run, "team").model_config["attacker_win_reward"] == 0.0
+        assert [learner_settings(run, "attacker", m).attacker_win_reward for m in (1, 2, 3)] == paid
+        assert learner_settings(run, "team").attacker_win_reward == 0.0
 
 
 def test_a_shared_team_reward_pays_t_and_d_the_sum_of_both(algo):
@@ -315,12 +322,9 @@ def test_frozen_players_play_their_mean_unless_they_explore(algo):
     runner = algo.env_runner
     attacker = runner.module[ATTACKER.name]
     for explore_when_frozen in (True, False):
-        attacker.model_config["explore_when_frozen"] = explore_when_frozen
-        try:
+        with changed_settings(attacker, explore_when_frozen=explore_when_frozen):
             runner._reset_all()
             _, rows, t = runner._play(10, None, True, False, episodes=False)
-        finally:
-            attacker.model_config["explore_when_frozen"] = True
         # The means recomputed step by step over the same rows as the runner's forward pass (all
         # games' attackers): a matmul over other shapes may take other kernels and round otherwise.
         with torch.no_grad():
@@ -499,7 +503,8 @@ def compare_bf16_update(algo, monkeypatch, native: bool):
 
     def ask(on):
         def set_it(learner):
-            learner.module[TEAM.name].model_config["bf16"] = on
+            module = learner.module[TEAM.name]
+            module.settings = module.settings.model_copy(update={"bf16": on})
 
         [call.get() for call in algo.learner_group.foreach_learner(set_it)]
 

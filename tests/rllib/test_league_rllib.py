@@ -8,7 +8,9 @@ import ray
 from league.config import RunConfig
 from league.core.players import Player
 from league.core.match_plan import MatchPlan
-from league.rllib.bridge import build_config, learner_env_steps, episode_outcomes, set_match_plan, set_trainable
+from league.rllib.bridge import (
+    build_config, episode_outcomes, learner_env_steps, learner_spec, set_match_plan, set_trainable,
+)
 
 
 def trained(result, module):
@@ -73,8 +75,6 @@ def test_switching_sides_trains_only_the_attacker(algo):
 
 
 def test_reward_connector_pays_each_attacker_module_its_own_method(algo):
-    from types import SimpleNamespace
-
     import numpy as np
 
     from league.rllib.callbacks import AttackerRewardByMethod
@@ -83,7 +83,7 @@ def test_reward_connector_pays_each_attacker_module_its_own_method(algo):
     episodes = algo.env_runner.sample(num_episodes=3, random_actions=True, force_reset=True)
     assert {ep.module_for("attacker") for ep in episodes} == {"attacker-m2"}
     paid_by_env = [ep.agent_episodes["attacker"].get_rewards().copy() for ep in episodes]
-    method_three = {"attacker-m2": SimpleNamespace(model_config={"reward_method": 3})}  # env pays method 2
+    method_three = {"attacker-m2": learner_spec(RunConfig(name="wiring"), "attacker", 3).build()}  # env pays method 2
     AddOneTsToEpisodesAndTruncate()(rl_module=method_three, batch={}, episodes=episodes, shared_data={})
     AttackerRewardByMethod()(rl_module=method_three, batch={}, episodes=episodes)
     changed = False
