@@ -4,7 +4,7 @@ For each reward variant, budget, attacker reward method and seed, trains the att
 under the paper's protocol (phase 1: against the scripted team) with
 ``configs/attacker_method{1,2,3}_paper.yaml`` (the paper's rewards, budget and scripted team), evaluates it on the fixed evaluation games, and
 writes per variant and budget ``OUT/VARIANT/BUDGET/table1.md`` (per-seed win rates, their
-mean with a bootstrap 95% interval over seeds, the paper's numbers, and from the learning
+mean with a Student-t 95% interval over seeds, the paper's numbers, and from the learning
 curves each attacker's return under its own method next to the best scripted
 attacker's) and ``OUT/VARIANT/BUDGET/curves-methodM/`` (``league.studies.curves`` over the seeds).
 

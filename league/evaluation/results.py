@@ -50,3 +50,20 @@ def evaluate_missing(
     with store.transaction():
         record_evaluations(store, last_iteration(store), results)
     return results
+
+
+def test_game_stats(
+    store: LeagueStore, run: RunConfig, run_dir: Path, pairs: list[tuple[Player, Player]], episodes: int, workers: int = 0
+) -> dict[tuple[int, int], GameStats]:
+    """Every pair's results on the first ``episodes`` held-out test games, by ``(attacker id, team id)``:
+    the pairs not yet recorded with that many games are played (in this process, or on
+    ``workers`` Ray actors) and recorded first."""
+    recorded = store.evaluation_stats("test")
+    missing = [(a, t) for a, t in pairs if recorded.get((a.id, t.id), {}).get("games") != episodes]
+    if missing:
+        results = evaluate_pairs(run.game, run_dir, missing, episodes, workers, games="test")
+        with store.transaction():
+            record_evaluations(store, last_iteration(store), results, "test")
+        recorded = store.evaluation_stats("test")
+    return {pair: GameStats.from_row(row) for pair, row in recorded.items()}
+

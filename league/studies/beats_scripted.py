@@ -33,10 +33,9 @@ import numpy as np
 from league.analysis.nash import meta_game
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
 from league.core.players import Player
-from league.evaluation.engine import evaluate_pairs
 from league.evaluation.panel import add_scripted, every_scripted_player
 from league.evaluation.learning_curves import GameStats
-from league.evaluation.results import last_iteration, record_evaluations
+from league.evaluation.results import test_game_stats
 from league.state.run_dir import open_run
 
 SIGNIFICANCE = 0.05  # of the paired t-test over seeds
@@ -134,16 +133,9 @@ def measure_on_test_games(run_dir: Path, episodes: int, untrained: bool = True, 
         add_scripted(store, every_scripted_player())
         final = FinalPlayers.of(store.players())
         attackers, teams = final.sides(untrained)
-        recorded = store.evaluation_stats("test")
-        missing = [(a, t) for a in attackers for t in teams if recorded.get((a.id, t.id), {}).get("games") != episodes]
-        if missing:
-            results = evaluate_pairs(run.game, run_dir, missing, episodes, workers, games="test")
-            with store.transaction():
-                record_evaluations(store, last_iteration(store), results, "test")
-            recorded = store.evaluation_stats("test")
+        stats = test_game_stats(store, run, run_dir, [(a, t) for a in attackers for t in teams], episodes, workers)
     finally:
         store.close()
-    stats = {pair: GameStats.from_row(row) for pair, row in recorded.items()}
     table = {pair: (s.attacker_wins, s.games) for pair, s in stats.items()}
     return comparisons(final, stats, untrained, run.game.terminal_reward), nash_rows(attackers, teams, table)
 

@@ -10,24 +10,25 @@ from pathlib import Path
 import numpy as np
 
 from league.analysis.statistics import SEED_INTERVAL, mean_interval
-from league.core.payoff import aggregate
+from league.evaluation.results import test_game_stats
 from league.reports.data import PAPER_TABLE_1
-from league.state.store import LeagueStore
+from league.state.run_dir import open_run
 from league.studies.runs import train_run
 
 
-def attacker_win_rate(run_dir: Path, method: int) -> tuple[float, int]:
-    """Evaluation win rate of ``attacker-m{method}-v1`` against the paper's scripted team."""
-    store = LeagueStore(run_dir)
+def attacker_win_rate(run_dir: Path, method: int, episodes: int) -> tuple[float, int]:
+    """Win rate of ``attacker-m{method}-v1`` against the paper's scripted team on the first
+    ``episodes`` held-out test games (played and recorded the first time)."""
+    run, store = open_run(run_dir)
     try:
         attacker = next(
             p for p in store.players(side="attacker", kind="snapshot") if p.reward_method == method and p.version == 1
         )
         team = next(p for p in store.players(side="team", kind="scripted") if p.is_paper_team)
-        wins, games = aggregate(store.newest_evaluation_rows())[(attacker.id, team.id)]
+        stats = test_game_stats(store, run, run_dir, [(attacker, team)], episodes)[(attacker.id, team.id)]
     finally:
         store.close()
-    return wins / games, games
+    return stats.win_rate("attacker"), stats.games
 
 
 @dataclass(frozen=True)
@@ -99,7 +100,7 @@ def table(args: argparse.Namespace, variant: str, budget: Budget, jobs: list[Job
     rates: dict[int, list[float]] = {}
     returns: dict[int, list[tuple[float, float, str]]] = {}
     for job in jobs:
-        rate, games = attacker_win_rate(job.run_dir, job.method)
+        rate, games = attacker_win_rate(job.run_dir, job.method, args.evaluation_episodes)
         rates.setdefault(job.method, []).append(rate)
         curve = own_method_returns(job.run_dir, job.method)
         if curve is not None:
@@ -109,7 +110,7 @@ def table(args: argparse.Namespace, variant: str, budget: Budget, jobs: list[Job
         f"# Table 1 analogue: {variant}, {budget.describe()}",
         "",
         f"Attacker win rate against the paper's scripted team (T to the terminal avoiding A, D pursuing A), "
-        f"{args.evaluation_episodes} fixed evaluation games per seed, {budget.describe()} of training per attacker, "
+        f"{args.evaluation_episodes} held-out test games per seed, {budget.describe()} of training per attacker, "
         f"{terminal}, {args.seeds} seeds; mean with its interval ({SEED_INTERVAL}). "
         f"Overrides: {args.overrides or 'none'}. Wall time of this invocation (finished runs reused): {wall:.0f} s.",
         "",
