@@ -1,5 +1,5 @@
 """Start classes (``envs.start_classes``): hand-built starts, the formulas, the counts on the
-fixed games, what the scripted attackers win in each class."""
+fixed games, what the scripted attackers win in each class, and ``envs.match --by-class``."""
 
 import numpy as np
 import pytest
@@ -153,3 +153,39 @@ def test_win_rates_by_class_leave_an_empty_class_out():
     classes = np.array(["t_race", "contested", "contested"])
     rates = win_rates_by_class(np.array([True, True, False]), classes)
     assert rates == {StartClass.T_RACE: 1.0, StartClass.A_CERTAIN: None, StartClass.CONTESTED: 0.5}
+
+
+def cells(line: str) -> list[str]:
+    return [cell.strip() for cell in line.strip("|").split("|")]
+
+
+def test_match_by_class_prints_the_rate_per_class_beside_the_overall_one(capsys):
+    assert match.main(["--episodes", "60", "--scenario", "defender_close", "--by-class"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    config = GameConfig(scenario="defender_close")
+    positions = evaluation_scenarios("defender_close", 60)
+    classes = classify(positions, config)
+    counts = class_counts(classes)
+    assert counts[StartClass.A_CERTAIN] == 0 < counts[StartClass.T_RACE]
+    assert lines[1] == "start classes (envs.start_classes): " + ", ".join(f"{c.value} {n}" for c, n in counts.items())
+    assert cells(lines[2]) == ["attacker", "targeter", "defender", "attacker wins"] + [
+        f"{c.value} ({counts[c]})" for c in StartClass
+    ]
+    rows = {tuple(row[:3]): row[3:] for row in map(cells, lines[4:])}
+    assert len(rows) == len(PLAYERS["attacker"]) * len(PLAYERS["targeter"]) * len(PLAYERS["defender"])
+    matchup = ("lead_intercept", "avoid_attacker", "pure_pursuit")
+    wins = match.play(config, match.scripted_players(*matchup), positions).attacker_wins
+    by_class = win_rates_by_class(wins, classes)
+    assert rows[matchup] == [
+        f"{wins.mean():.3f}",
+        f"{by_class[StartClass.T_RACE]:.3f}",
+        "-",
+        f"{by_class[StartClass.CONTESTED]:.3f}",
+    ]
+
+
+def test_match_without_by_class_prints_no_classes(capsys):
+    assert match.main(["--episodes", "5"]) == 0
+    out = capsys.readouterr().out
+    assert "start classes" not in out and "t_race" not in out
+    assert out.splitlines()[1].startswith("| attacker | targeter | defender | attacker wins | captured |")
