@@ -5,7 +5,9 @@ A *controller* picks one agent's actions: anything with ``act(game) -> (N, 2)``,
 evaluation plays its games with the rollout (``league.rollout.games``), which gives the same
 outcomes on the same games (``tests/evaluation/test_engine.py``).
 
-``python -m envs.match --episodes 1000`` prints the scripted-vs-scripted win rates.
+``python -m envs.match --episodes 1000`` prints the scripted-vs-scripted win rates;
+``--by-class`` adds each matchup's attacker win rate on the games of each start class
+(``envs.start_classes``: T-race, A-certain, contested) and the class counts of the games.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Iterator, Protocol
 
 import numpy as np
 
@@ -22,6 +24,7 @@ from envs.config import GameConfig
 from envs.core import BatchedGame
 from envs.scenarios import SCENARIO_SETS, evaluation_scenarios
 from envs.scripted import PLAYERS, ScriptedPlayer
+from envs.start_classes import StartClass, class_counts, classify, win_rates_by_class
 
 
 class Controller(Protocol):
@@ -73,27 +76,40 @@ def scripted_players(attacker: str, targeter: str, defender: str) -> dict[str, C
     }
 
 
-def scripted_table(config: GameConfig, episodes: int) -> list[tuple[str, str, str, float, dict[str, int]]]:
-    """Attacker win rate of every scripted attacker against every scripted team."""
-    positions = evaluation_scenarios(config.scenario, episodes)
-    rows = []
+def scripted_results(config: GameConfig, positions: np.ndarray) -> Iterator[tuple[str, str, str, GameResults]]:
+    """Every scripted attacker against every scripted team on ``positions``, one matchup at a time."""
     for attacker in PLAYERS["attacker"]:
         for targeter in PLAYERS["targeter"]:
             for defender in PLAYERS["defender"]:
-                result = play(config, scripted_players(attacker, targeter, defender), positions)
-                rows.append((attacker, targeter, defender, float(result.attacker_wins.mean()), result.outcome_counts()))
-    return rows
+                players = scripted_players(attacker, targeter, defender)
+                yield attacker, targeter, defender, play(config, players, positions)
+
+
+def scripted_table(config: GameConfig, episodes: int) -> list[tuple[str, str, str, float, dict[str, int]]]:
+    """Attacker win rate of every scripted attacker against every scripted team."""
+    positions = evaluation_scenarios(config.scenario, episodes)
+    return [
+        (attacker, targeter, defender, float(result.attacker_wins.mean()), result.outcome_counts())
+        for attacker, targeter, defender, result in scripted_results(config, positions)
+    ]
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Scripted-vs-scripted attacker win rates on fixed seeded games.")
     parser.add_argument("--episodes", type=int, default=1000)
     parser.add_argument("--scenario", default="default", choices=sorted(SCENARIO_SETS))
+    parser.add_argument(
+        "--by-class",
+        action="store_true",
+        help="also the attacker win rate on each start class (envs.start_classes) and the classes' counts",
+    )
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be at least 1")
     config = GameConfig(scenario=args.scenario)
     print(f"scenario {args.scenario!r}, {args.episodes} fixed episodes per row")
+    if args.by_class:
+        return _print_by_class(config, args.episodes)
     print("| attacker | targeter | defender | attacker wins | captured | timeout | terminal_reached | attacker_intercepted |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for attacker, targeter, defender, rate, counts in scripted_table(config, args.episodes):
@@ -102,6 +118,22 @@ def main(argv: list[str] | None = None) -> int:
             f"| {attacker} | {targeter} | {defender} | {rate:.3f} | {c['captured']} | {c['timeout']} "
             f"| {c['terminal_reached']} | {c['attacker_intercepted']} |"
         )
+    return 0
+
+
+def _print_by_class(config: GameConfig, episodes: int) -> int:
+    """The table with the attacker's win rate per start class beside the overall one ("-": no such start)."""
+    positions = evaluation_scenarios(config.scenario, episodes)
+    classes = classify(positions, config)
+    counts = class_counts(classes)
+    print("start classes (envs.start_classes): " + ", ".join(f"{c.value} {n}" for c, n in counts.items()))
+    names = " | ".join(f"{c.value} ({counts[c]})" for c in StartClass)
+    print(f"| attacker | targeter | defender | attacker wins | {names} |")
+    print("| --- | --- | --- | --- |" + " --- |" * len(StartClass))
+    for attacker, targeter, defender, result in scripted_results(config, positions):
+        wins = result.attacker_wins
+        rates = " | ".join("-" if r is None else f"{r:.3f}" for r in win_rates_by_class(wins, classes).values())
+        print(f"| {attacker} | {targeter} | {defender} | {wins.mean():.3f} | {rates} |")
     return 0
 
 
