@@ -340,7 +340,7 @@ class LeagueSettings(Strict):
 
 
 class EvaluationSettings(Strict):
-    """The fixed evaluation games: the final evaluation, evaluations during training and learning curves."""
+    """The fixed dev games (envs.scenarios): the final evaluation, evaluations during training and learning curves."""
 
     episodes: int = Field(1000, ge=1)
     """Fixed seeded games per evaluated pair."""

@@ -176,7 +176,7 @@ def table_one_rows(data: ReportData) -> list[list[str]]:
 TABLE_ONE_HEADER = ["method", "attacker", "win rate vs the paper's scripted team", "95% interval", "games",
                     "paper (100 rounds)"]
 CURVES_NOTE = ("Each learner, as it was every `evaluation.curve_every_env_steps` of its env steps, against its curve "
-               "opponents on the same fixed games (deterministic actions; `league.evaluation.learning_curves`), with the scripted players "
+               "opponents on the same fixed dev games (deterministic actions; `league.evaluation.learning_curves`), with the scripted players "
                "of its side and its untrained version 0 on those games as horizontal lines.")
 NO_META_GAME = "the league has no frozen attacker or no frozen team."
 RATINGS_HEADER = ["player", "side", "kind", "rating", "Nash-averaged rating", "games"]

@@ -95,7 +95,7 @@ def study(run_dirs: list[Path], out: Path) -> tuple[Path, Path]:
     plot_curves(groups, reward, f"{configs[0].name}: {len(run_dirs)} runs", out / "curves.png")
     runs_generations_plot([(name, lines) for name, (lines, _) in zip(names, generations)], out / "generations.png")
     text = f"# Learning curves of {len(run_dirs)} runs\n\nRuns: {', '.join(map(str, run_dirs))}. " \
-           f"Last point of each run; references are means over the runs.\n\n" + summary_table(groups, names, reward) \
+           f"Last point of each run on the fixed dev games; references are means over the runs.\n\n" + summary_table(groups, names, reward) \
            + "\n" + progress_table(generations, names)
     (out / "curves.md").write_text(text)
     return out / "curves.png", out / "curves.md"
