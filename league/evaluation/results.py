@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from league.config import RunConfig
 from league.core.payoff import aggregate, league_ratings
 from league.core.players import Player
@@ -26,7 +28,8 @@ def record_evaluations(store: LeagueStore, iteration: int, results: list[PairEva
     (the league's ratings never see the test games)."""
     for r in results:
         store.record_evaluation(iteration, r.outcome_rows(), EVALUATION_SOURCE[games])
-        store.record_evaluation_stats(iteration, EVALUATION_SOURCE[games], r.attacker.id, r.team.id, GameStats.of(r.result).columns())
+        store.record_evaluation_stats(iteration, EVALUATION_SOURCE[games], r.attacker.id, r.team.id,
+                                      GameStats.of(r.result).columns(), r.result.outcome.astype(np.uint8).tobytes())
     if games == "dev":
         store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
 
@@ -58,12 +61,18 @@ def test_game_stats(
     """Every pair's results on the first ``episodes`` held-out test games, by ``(attacker id, team id)``:
     the pairs not yet recorded with that many games are played (in this process, or on
     ``workers`` Ray actors) and recorded first."""
-    recorded = store.evaluation_stats("test")
-    missing = [(a, t) for a, t in pairs if recorded.get((a.id, t.id), {}).get("games") != episodes]
+    recorded, outcomes = store.evaluation_stats("test"), store.evaluation_outcomes("test")
+    missing = [(a, t) for a, t in pairs
+               if recorded.get((a.id, t.id), {}).get("games") != episodes or (a.id, t.id) not in outcomes]
     if missing:
         results = evaluate_pairs(run.game, run_dir, missing, episodes, workers, games="test")
         with store.transaction():
             record_evaluations(store, last_iteration(store), results, "test")
         recorded = store.evaluation_stats("test")
     return {pair: GameStats.from_row(row) for pair, row in recorded.items()}
+
+
+def game_outcomes(store: LeagueStore, games: str = "dev") -> dict[tuple[int, int], np.ndarray]:
+    """Each pair's per-game ``Outcome`` values of its newest evaluation on the fixed ``games``, in game order."""
+    return {pair: np.frombuffer(blob, dtype=np.uint8) for pair, blob in store.evaluation_outcomes(EVALUATION_SOURCE[games]).items()}
 

@@ -116,7 +116,8 @@ CREATE TABLE IF NOT EXISTS evaluation_stats (  -- a pair's newest evaluation: re
     source TEXT NOT NULL,            -- as in matches: 'evaluation' (dev games) or 'test'
     attacker INTEGER NOT NULL REFERENCES players(id),
     team INTEGER NOT NULL REFERENCES players(id),
-    {stats}
+    {stats},
+    outcomes BLOB                    -- each game's envs.agents.Outcome value (one byte a game, in game order)
 );
 """.format(stats=CURVE_STATS_SQL)
 
@@ -179,6 +180,8 @@ class LeagueStore:
             for column in ("seed", "env_step_budget", "from_prior"):  # a database from before best responses, or their start
                 if column not in columns:
                     self.db.execute(f"ALTER TABLE players ADD COLUMN {column} INTEGER")
+            if "outcomes" not in {row[1] for row in self.db.execute("PRAGMA table_info(evaluation_stats)")}:
+                self.db.execute("ALTER TABLE evaluation_stats ADD COLUMN outcomes BLOB")  # from before per-game outcomes
         except sqlite3.DatabaseError as err:
             self.db.close()
             raise DamagedStoreError(f"{path} is damaged ({err})") from err
@@ -293,14 +296,24 @@ class LeagueStore:
             )
         self.record_outcomes(iteration, source, rows)
 
-    def record_evaluation_stats(self, iteration: int, source: str, attacker: int, team: int, stats: dict[str, float]) -> None:
-        """A pair's returns and wins on its fixed games (``CURVE_STATS`` columns), replacing the pair's earlier ones."""
+    def record_evaluation_stats(
+        self, iteration: int, source: str, attacker: int, team: int, stats: dict[str, float], outcomes: bytes | None = None
+    ) -> None:
+        """A pair's returns and wins on its fixed games (``CURVE_STATS`` columns) and each game's outcome,
+        replacing the pair's earlier ones."""
         self.db.execute("DELETE FROM evaluation_stats WHERE source = ? AND attacker = ? AND team = ?", (source, attacker, team))
         self.db.execute(
-            f"INSERT INTO evaluation_stats (iteration, source, attacker, team, {', '.join(CURVE_STATS)}) "
-            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
-            (iteration, source, attacker, team, *[stats[c] for c in CURVE_STATS]),
+            f"INSERT INTO evaluation_stats (iteration, source, attacker, team, {', '.join(CURVE_STATS)}, outcomes) "
+            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)}, ?)",
+            (iteration, source, attacker, team, *[stats[c] for c in CURVE_STATS], outcomes),
         )
+
+    def evaluation_outcomes(self, source: str = "evaluation") -> dict[tuple[int, int], bytes]:
+        """``(attacker id, team id)`` -> each game's outcome byte of the pair's newest evaluation on ``source``'s games."""
+        cursor = self.db.execute(
+            "SELECT attacker, team, outcomes FROM evaluation_stats WHERE source = ? AND outcomes IS NOT NULL", (source,)
+        )
+        return {(a, t): outcomes for a, t, outcomes in cursor.fetchall()}
 
     def evaluation_stats(self, source: str = "evaluation") -> dict[tuple[int, int], dict[str, float]]:
         """``(attacker id, team id)`` -> the ``CURVE_STATS`` columns of the pair's newest evaluation on ``source``'s games."""

@@ -30,15 +30,19 @@ from pathlib import Path
 
 import numpy as np
 
+from envs.scenarios import evaluation_scenarios
+from envs.start_classes import StartClass, classify, win_rates_by_class
 from league.analysis.nash import meta_game
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
 from league.core.players import Player
 from league.evaluation.panel import add_scripted, every_scripted_player
 from league.evaluation.learning_curves import GameStats
-from league.evaluation.results import test_game_stats
+from league.core.payoff import attacker_won_games
+from league.evaluation.results import game_outcomes, test_game_stats
 from league.state.run_dir import open_run
 
 SIGNIFICANCE = 0.05  # of the paired t-test over seeds
+CLASSES = tuple(StartClass)  # the order of ``Row.by_class``
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,19 @@ class Row:
     reference_attacker_wins: tuple[int, int]
     own_return: float  # the player's mean return per game by its own reward
     reference_own_return: float  # the reference's, by the player's reward
+    # Per StartClass (envs.start_classes), the attacker win rate in player's pair and in the reference's
+    # (None for a class without starts); empty where the games' outcomes were not at hand.
+    by_class: tuple[tuple[float | None, float | None], ...] = ()
+
+    @property
+    def free_losses(self) -> float | None:
+        """What the geometry gave away: a team's losses on T-race starts, an attacker's failures on A-certain ones."""
+        if not self.by_class:
+            return None
+        if self.side == "team":
+            return self.by_class[CLASSES.index(StartClass.T_RACE)][0]
+        won = self.by_class[CLASSES.index(StartClass.A_CERTAIN)][0]
+        return None if won is None else 1.0 - won
 
     @property
     def rate(self) -> float:
@@ -134,14 +151,26 @@ def measure_on_test_games(run_dir: Path, episodes: int, untrained: bool = True, 
         final = FinalPlayers.of(store.players())
         attackers, teams = final.sides(untrained)
         stats = test_game_stats(store, run, run_dir, [(a, t) for a in attackers for t in teams], episodes, workers)
+        wins = {pair: attacker_won_games(outcomes) for pair, outcomes in game_outcomes(store, "test").items()}
     finally:
         store.close()
+    classes = classify(evaluation_scenarios(run.game.scenario, episodes, "test"), run.game)
     table = {pair: (s.attacker_wins, s.games) for pair, s in stats.items()}
-    return comparisons(final, stats, untrained, run.game.terminal_reward), nash_rows(attackers, teams, table)
+    rows = comparisons(final, stats, untrained, run.game.terminal_reward, (wins, classes))
+    return rows, nash_rows(attackers, teams, table)
 
 
-def comparisons(final: FinalPlayers, stats: dict[tuple[int, int], GameStats], untrained: bool, terminal_reward: float) -> list[Row]:
-    """Every row of one run from its test-game results by ``(attacker id, team id)``."""
+def comparisons(
+    final: FinalPlayers, stats: dict[tuple[int, int], GameStats], untrained: bool, terminal_reward: float,
+    games: tuple[dict[tuple[int, int], np.ndarray], np.ndarray] | None = None,
+) -> list[Row]:
+    """Every row of one run from its test-game results by ``(attacker id, team id)``; with ``games``
+    (each pair's per-game attacker wins, each game's start class), the rates by class too."""
+
+    def by_class(pair: tuple[int, int]) -> list[float | None]:
+        wins, classes = games
+        rates = win_rates_by_class(wins[pair], classes)
+        return [rates[c] for c in CLASSES]
 
     def row(player: Player, against: Player, reference: Player) -> Row:
         pair = (lambda p: (p, against)) if player.side == "attacker" else (lambda p: (against, p))
@@ -152,8 +181,9 @@ def comparisons(final: FinalPlayers, stats: dict[tuple[int, int], GameStats], un
                 return s.attacker_return(player.reward_method, terminal_reward)
             return s.team_return(terminal_reward)
 
+        classes = tuple(zip(by_class(ids(*pair(player))), by_class(ids(*pair(reference))))) if games else ()
         return Row(player.name, against.name, reference.name, player.side, (mine.attacker_wins, mine.games),
-                   (theirs.attacker_wins, theirs.games), own(mine), own(theirs))
+                   (theirs.attacker_wins, theirs.games), own(mine), own(theirs), classes)
 
     def rate(attacker: Player, team: Player) -> float:
         return stats[ids(attacker, team)].win_rate("attacker")
@@ -226,8 +256,36 @@ def table(per_seed: dict[int, tuple[list[Row], list[NashRow]]]) -> str:
             + " | ".join(f"[{n.low:.3f}, {n.high:.3f}]" for n in ranges)
             + f" | least over seeds {min(n.low for n in ranges):.3f} | | | | |"
         )
-    return ("Attacker win rate, 95% Wilson interval and verdict within each seed's test games:\n\n" + "\n".join(rates)
+    text = ("Attacker win rate, 95% Wilson interval and verdict within each seed's test games:\n\n" + "\n".join(rates)
             + "\n\nThe same comparisons on the player's own reward (mean return per game):\n\n" + "\n".join(returns) + "\n")
+    return text + class_table(per_seed)
+
+
+def class_table(per_seed: dict[int, tuple[list[Row], list[NashRow]]]) -> str:
+    """Markdown: the comparisons with a scripted reference by start class, means over seeds, and the free losses."""
+    seeds = sorted(per_seed)
+    first = per_seed[seeds[0]][0]
+    if not first or not first[0].by_class:
+        return ""
+    lines = [
+        "| trained player | against | " + " | ".join(f"{c.value}: it / reference" for c in CLASSES)
+        + " | free losses, mean [least, most] over seeds |",
+        "| --- | --- | " + " | ".join("---" for _ in CLASSES) + " | --- |",
+    ]
+    for index, head in enumerate(first):
+        if not head.reference.startswith("scripted-"):
+            continue
+        rows = [per_seed[s][0][index] for s in seeds]
+        cells = []
+        for k in range(len(CLASSES)):
+            mine, theirs = ([r.by_class[k][j] for r in rows] for j in (0, 1))
+            cells.append("-" if mine[0] is None else f"{np.mean(mine):.3f} / {np.mean(theirs):.3f}")
+        free = [r.free_losses for r in rows]
+        lines.append(f"| {head.player} | {head.against} | " + " | ".join(cells) + " | "
+                     + ("-" if free[0] is None else f"{np.mean(free):.3f} [{min(free):.3f}, {max(free):.3f}]") + " |")
+    return ("\nBy start class (`envs/start_classes.py`: what straight-line geometry decides before anyone moves), "
+            "attacker win rates, means over seeds; free losses: a team's losses on T-race starts, an attacker's "
+            "failures on A-certain ones:\n\n" + "\n".join(lines) + "\n")
 
 
 def summary_line(head: Row, cells: list[str], values: list[float], references: list[float], gains: list[float], number: str) -> str:

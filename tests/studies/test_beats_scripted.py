@@ -2,12 +2,16 @@
 
 import pytest
 
+from envs.scenarios import evaluation_scenarios
+from envs.start_classes import StartClass, class_counts, classify
 from league.core.players import Player
 from league.evaluation.learning_curves import GameStats
 from league.evaluation.panel import every_scripted_player
 from league.state.run_dir import open_run
 from league.study import main as study_main
-from league.studies.beats_scripted import FinalPlayers, Row, comparisons, measure_on_test_games, seed_verdict, table
+from league.studies.beats_scripted import (
+    CLASSES, FinalPlayers, Row, class_table, comparisons, measure_on_test_games, seed_verdict, table,
+)
 
 
 def scripted_attacker(pid, name):
@@ -96,6 +100,13 @@ def test_a_run_is_measured_on_the_test_games_once(run_copy):
     assert sum(r.count for r in recorded) == 8 * len({(r.attacker, r.team) for r in recorded})
     assert {r.against for r in rows if r.player == "team-v1"} >= {"scripted-evade_defender", "attacker-m2-v1"}
     assert [(n.side, 0.0 <= n.low <= n.high <= 1.0) for n in nash] == [("attacker", True), ("team", True)]
+    # By start class: the class rates, weighted by the classes' sizes on these 8 test games, give the overall rate.
+    run, _ = open_run(run_copy)
+    counts = class_counts(classify(evaluation_scenarios(run.game.scenario, 8, "test"), run.game))
+    for r in rows:
+        for k, rate in ((0, r.rate), (1, r.reference_rate)):
+            by_class = [r.by_class[i][k] for i in range(len(CLASSES))]
+            assert sum(counts[c] * (x or 0.0) for c, x in zip(CLASSES, by_class)) == pytest.approx(8 * rate)
     # A second call plays nothing again: the recorded games are reused, the rows the same.
     again, _ = measure_on_test_games(run_copy, 8)
     _, store = open_run(run_copy)
@@ -112,3 +123,16 @@ def test_the_study_refuses_to_report_a_seed_that_chose_its_settings(tmp_path, ca
     assert study_main(["--config", "smoke", "--seeds", "3", "4", "--out", str(tmp_path), "--set", "ppo.lr=fast"]) == 2
     assert "ppo.lr" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())  # nothing trained, nothing written
+
+
+def test_free_losses_are_what_the_geometry_gave_away():
+    by_class = {StartClass.T_RACE: (0.05, 0.01), StartClass.A_CERTAIN: (0.90, 1.0), StartClass.CONTESTED: (0.3, 0.4)}
+    ordered = tuple(by_class[c] for c in CLASSES)
+    team = Row("team-v1", "a", "scripted-x", "team", (30, 100), (40, 100), 0.0, 0.0, ordered)
+    attacker = Row("attacker-m2-v1", "t", "scripted-y", "attacker", (30, 100), (40, 100), 0.0, 0.0, ordered)
+    assert team.free_losses == 0.05  # the attacker won 5% of the starts where T could race home
+    assert attacker.free_losses == pytest.approx(0.10)  # it lost 10% of the starts the geometry gave it
+    assert Row("p", "a", "r", "team", (1, 2), (1, 2), 0.0, 0.0).free_losses is None  # no outcomes at hand
+    text = class_table({s: ([team, attacker], []) for s in range(2)})
+    assert "| team-v1 | a | 0.050 / 0.010 | 0.900 / 1.000 | 0.300 / 0.400 | 0.050 [0.050, 0.050] |" in text
+    assert "| attacker-m2-v1 | t |" in text and "0.100 [0.100, 0.100] |" in text
