@@ -34,7 +34,7 @@ draws them, ``league.studies.curves`` compares several runs (``python -m league.
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -261,6 +261,7 @@ class Curve:
     env_steps: list[int]
     stats: list[GameStats]
     references: list[tuple[str, str, GameStats]]  # (kind, name, stats)
+    iterations: list[int] = field(default_factory=list)  # the run's iteration at each point
 
 
 def read_curves(store: Any) -> list[Curve]:
@@ -280,6 +281,7 @@ def read_curves(store: Any) -> list[Curve]:
             and (r["kind"] == "scripted" or players.get(r["player"], learner).parent == learner_id)
         ]
         curves.append(Curve(
-            learner, players[opponent_id], [r["env_steps"] for r in rows], [GameStats.from_row(r) for r in rows], refs
+            learner, players[opponent_id], [r["env_steps"] for r in rows], [GameStats.from_row(r) for r in rows], refs,
+            [r["iteration"] for r in rows],
         ))
     return curves

@@ -1,0 +1,106 @@
+"""How long until a config's players are strong? ``python bench/time_to_strength.py --criterion protocol --run-dirs D...``.
+
+Reads finished runs (one per training seed): each learner's learning curve (its win rate
+against its curve opponents on the first ``evaluation.curve_episodes`` dev games, every
+``evaluation.curve_every_env_steps`` of its env steps) beside the scripted references on the
+same games, and the wall time of every training iteration. A side's criterion holds at a
+curve point when it holds against every curve opponent there, by 95% Wilson intervals:
+
+* ``protocol`` (the flagship's): the attacker wins more often than lead intercept against
+  the paper's team, intervals apart; the team lets every attacker it trains against win less
+  often than the best scripted team does, intervals apart;
+* ``league``: each attacker is at least even with the best scripted attacker against every
+  scripted team (its interval reaches the best one's); the team lets every attacker win
+  less often than the best scripted team does, intervals apart.
+
+Printed per run: for each learner, the env steps of its own and the run's wall time of
+training iterations at the first point where its criterion holds ("never" if none), and the
+run's time to criterion, the latest of its learners' (the time the run needed to be strong
+had it stopped there); then the mean and range over the runs. The wall times are those the
+runs recorded: compare configs only on runs trained on one machine under the same load.
+"""
+
+from __future__ import annotations
+
+import argparse
+from itertools import accumulate
+from pathlib import Path
+
+from envs.scripted import PAPER_TEAM
+from league.analysis.statistics import wilson_interval
+from league.evaluation.learning_curves import Curve, GameStats, read_curves
+from league.state.run_dir import open_run
+
+PAPER_TEAM_NAME = f"scripted-{PAPER_TEAM['targeter']}+{PAPER_TEAM['defender']}"
+
+
+def interval(stats: GameStats) -> tuple[float, float]:
+    """The attacker's win rate's 95% Wilson interval."""
+    return wilson_interval(stats.attacker_wins, stats.games)
+
+
+def holds(criterion: str, curve: Curve, point: int) -> bool:
+    """Whether the learner's criterion holds against this curve's opponent at curve point ``point``."""
+    mine = interval(curve.stats[point])
+    scripted = [stats for kind, _, stats in curve.references if kind == "scripted"]
+    if curve.learner.side == "team":  # below the best scripted team's rate, intervals apart
+        best = min(scripted, key=lambda s: s.attacker_wins / s.games)
+        return mine[1] < interval(best)[0]
+    if criterion == "protocol":
+        if curve.opponent.name != PAPER_TEAM_NAME:
+            return True  # the protocol asks about the paper's team only
+        lead = next(stats for kind, name, stats in curve.references if name == "scripted-lead_intercept")
+        return mine[0] > interval(lead)[1]
+    best = max(scripted, key=lambda s: s.attacker_wins / s.games)
+    return mine[1] >= interval(best)[0]
+
+
+def first_strong(criterion: str, curves: list[Curve]) -> tuple[int, int] | None:
+    """A learner's first curve point at which its criterion holds against every opponent: ``(env steps, iteration)``."""
+    for point in range(len(curves[0].stats)):
+        if all(point < len(c.stats) and holds(criterion, c, point) for c in curves):
+            return curves[0].env_steps[point], curves[0].iterations[point]
+    return None
+
+
+def measure(run_dir: Path, criterion: str) -> tuple[dict[str, tuple[int, float] | None], float]:
+    """Per learner, (its env steps, the run's training seconds) at its first strong point; and the run's training seconds."""
+    _, store = open_run(run_dir)
+    try:
+        curves, iterations = read_curves(store), store.iteration_rows()
+    finally:
+        store.close()
+    elapsed = dict(zip([row["iteration"] for row in iterations], accumulate(row["wall_seconds"] for row in iterations)))
+    by_learner: dict[str, list[Curve]] = {}
+    for curve in curves:
+        by_learner.setdefault(curve.learner.name, []).append(curve)
+    found = {}
+    for name, learner_curves in by_learner.items():
+        strong = first_strong(criterion, learner_curves)
+        found[name] = None if strong is None else (strong[0], elapsed[strong[1]])
+    return found, elapsed[max(elapsed)]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run-dirs", type=Path, nargs="+", required=True, help="finished runs of one config, one per seed")
+    parser.add_argument("--criterion", choices=("protocol", "league"), required=True)
+    args = parser.parse_args()
+    times = []
+    for run_dir in args.run_dirs:
+        found, total = measure(run_dir, args.criterion)
+        cells = [f"{name} {'never' if at is None else f'at {at[0]:,} env steps, {at[1]:.0f} s'}" for name, at in found.items()]
+        strong = None if any(at is None for at in found.values()) else max(at[1] for at in found.values())
+        times.append(strong)
+        print(f"{run_dir}: {'; '.join(cells)}; strong after {'never' if strong is None else f'{strong:.0f} s'} "
+              f"of {total:.0f} s of training iterations")
+    reached = [t for t in times if t is not None]
+    if reached:
+        print(f"time to criterion: mean {sum(reached) / len(reached):.0f} s, range [{min(reached):.0f}, {max(reached):.0f}] s "
+              f"over {len(reached)} of {len(times)} runs")
+    else:
+        print(f"time to criterion: never reached in {len(times)} runs")
+
+
+if __name__ == "__main__":
+    main()
