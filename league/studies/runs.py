@@ -8,7 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from league.state.run_dir import lock_run
+from league.config import RUN_CONFIG_FILE, added_at_its_default, changed_keys, load_config
+from league.state.run_dir import RunDirError, lock_run, read_config
 
 
 def finished(run_dir: Path) -> bool:
@@ -30,9 +31,23 @@ def say(line: str) -> None:
     sys.stdout.flush()
 
 
+def check_same_config(config: str, run_dir: Path, overrides) -> None:
+    """Refuse to reuse or resume a run made from another config than ``config`` with ``overrides``
+    (a study that spans sessions must not mix runs of an edited config with new ones)."""
+    if not (run_dir / RUN_CONFIG_FILE).exists():
+        return
+    old, new = read_config(run_dir).model_dump(mode="json"), load_config(config, list(overrides)).model_dump(mode="json")
+    keys = [key for key in changed_keys(old, new) if not added_at_its_default(old, new, key)]
+    if keys:
+        raise RunDirError(f"{run_dir} was trained with another config ({', '.join(keys)} differ from {config} "
+                          "with these overrides): move it away, or give the study another --out")
+
+
 def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | None = None) -> None:
     """Train a ``league.run`` to the end: skip it when finished, resume it when it has a
-    checkpoint, else start it from ``config`` with ``overrides`` (``--set`` items)."""
+    checkpoint, else start it from ``config`` with ``overrides`` (``--set`` items); a run made
+    from another config is refused (``RunDirError``)."""
+    check_same_config(config, run_dir, overrides)
     if finished(run_dir):
         say(f"reusing {run_dir} (finished)")
         return

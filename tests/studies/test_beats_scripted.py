@@ -136,3 +136,19 @@ def test_free_losses_are_what_the_geometry_gave_away():
     text = class_table({s: ([team, attacker], []) for s in range(2)})
     assert "| team-v1 | a | 0.050 / 0.010 | 0.900 / 1.000 | 0.300 / 0.400 | 0.050 [0.050, 0.050] |" in text
     assert "| attacker-m2-v1 | t |" in text and "0.100 [0.100, 0.100] |" in text
+
+
+def test_a_study_does_not_reuse_a_run_of_another_config(tiny_run, tmp_path, capsys):
+    import shutil
+
+    from league.studies.runs import check_same_config
+
+    config = tmp_path / "tiny.yaml"
+    config.write_text((tiny_run.parent / "tiny.yaml").read_text())
+    out = tmp_path / "study"
+    shutil.copytree(tiny_run, out / "tiny" / "seed-3")
+    check_same_config(str(config), out / "tiny" / "seed-3", ["seed=3"])  # the same config: reused
+    args = ["--config", str(config), "--seeds", "3", "4", "--out", str(out), "--set", "ppo.lr=0.01"]
+    assert study_main(args) == 2  # seed 3's run had another learning rate
+    assert "ppo.lr" in capsys.readouterr().err
+    assert not (out / "tiny" / "seed-4").exists()
