@@ -11,7 +11,7 @@ from league.analysis.nash import (
     GROUP_HEADER, GROUP_NOTE, GROUP_TITLE, META_GAME_NOTE, MIXTURE_HEADER, MIXTURE_TITLE, league_meta_game,
 )
 from league.core.payoff import aggregate, player_record
-from league.state.run_dir import usable_checkpoints
+from league.state.run_dir import FINISHED, STOPPED, usable_checkpoints
 from league.state.store import LeagueStore
 
 
@@ -71,10 +71,10 @@ def exploitability_section(store: LeagueStore) -> list:
     return [table]
 
 
-def status_json(run_dir: Path, store: LeagueStore, source: str | None = None) -> dict:
-    """What the tables say, as data (``--json``; the schema is in docs/training.md, "Status")."""
+def status_json(run_dir: Path, store: LeagueStore, state: str, source: str | None = None) -> dict:
+    """What the tables say, as data (``--json``; the schema is in docs/training.md, "Status");
+    ``state`` is ``run_dir.run_state``'s."""
     last = store.last_iteration()
-    checkpoint = store.last_checkpoint()
     seconds = store.training_seconds()
     usable, problems = usable_checkpoints(run_dir, store)
     ratings = store.latest_ratings()
@@ -91,7 +91,10 @@ def status_json(run_dir: Path, store: LeagueStore, source: str | None = None) ->
         })
     meta, why_not = league_meta_game(players, store.newest_evaluation_rows())
     return {
-        "finished": bool(checkpoint and checkpoint[2].get("training_done", False)),
+        "state": state,
+        "finished": state == FINISHED,
+        "training_done": training_done(store),
+        "next": next_step(run_dir, state, usable),
         "iteration": last["iteration"] if last else 0,
         "phase": last["phase"] + 1 if last else None,
         "learner_side": last["learner_side"] if last else None,
@@ -106,14 +109,33 @@ def status_json(run_dir: Path, store: LeagueStore, source: str | None = None) ->
     }
 
 
-def run_line(store: LeagueStore) -> str:
-    """Where the run stands: finished or at which phase, and its average speed so far."""
+def training_done(store: LeagueStore) -> bool:
+    """Whether the run trained its last iteration (its final evaluation may still be to come)."""
+    checkpoint = store.last_checkpoint()
+    return bool(checkpoint and checkpoint[2].get("training_done", False))
+
+
+def next_step(run_dir: Path, state: str, usable: list) -> str | None:
+    """What to do with a stopped run (``None`` for one training or finished)."""
+    if state != STOPPED:
+        return None
+    if not usable:
+        return f"nothing to resume (no intact checkpoint): delete it (rm -r {run_dir}) and start the run again"
+    return f"resume with `python -m league.run --resume {run_dir}`"
+
+
+def run_line(store: LeagueStore, state: str) -> str:
+    """Where the run stands: training (a live process holds its lock), stopped (none does, and its
+    final evaluation is not written) or finished; at which phase, and its average speed so far."""
     last = store.last_iteration()
     if not last:
-        return "no iteration finished yet"
-    checkpoint = store.last_checkpoint()
-    finished = checkpoint is not None and checkpoint[2].get("training_done", False)
-    where = "finished" if finished else f"phase {last['phase'] + 1} ({last['learner_side']} learning)"
+        return f"{state}: no iteration finished yet"
+    if state == FINISHED:
+        where = "finished"
+    elif training_done(store):
+        where = f"{state} in its final evaluation (training done)"
+    else:
+        where = f"{state} in phase {last['phase'] + 1} ({last['learner_side']} learning)"
     seconds = store.training_seconds()
     speed = f"{last['env_steps'] / seconds:.0f} env steps/s on average" if seconds > 0 else "no timing"
     return (

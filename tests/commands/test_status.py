@@ -1,0 +1,76 @@
+"""``league.status``: training, stopped or finished; what it says a stopped run needs; its JSON.
+
+Each test reads a copy of the session's finished ``tiny_run``. A run that trains is stood for by
+a process that holds the run directory's lock (what ``league.run`` holds while it trains), and a
+SIGKILLed run by that process killed.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+from league import status
+
+EVALUATION_FILE = "evaluation.md"  # the last file a run writes
+
+ROOT = Path(__file__).resolve().parents[2]
+HOLD_THE_LOCK = (
+    "import sys, time; from pathlib import Path; from league.state.run_dir import lock_run\n"
+    "lock = lock_run(Path(sys.argv[1])); print('held', flush=True); time.sleep(600)\n"
+)
+
+
+def status_of(run_dir: Path, capsys) -> tuple[dict, list[str]]:
+    """``status --json`` and the first lines of the text."""
+    assert status.main(["--run-dir", str(run_dir), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert status.main(["--run-dir", str(run_dir)]) == 0
+    return data, capsys.readouterr().out.splitlines()[:3]
+
+
+def test_a_finished_run_is_finished(run_copy, capsys):
+    data, lines = status_of(run_copy, capsys)
+    assert (data["state"], data["finished"], data["training_done"], data["next"]) == ("finished", True, True, None)
+    assert lines[0].startswith("finished: iteration ")
+    assert not any("--resume" in line for line in lines)
+
+
+def test_a_run_whose_final_evaluation_was_interrupted_is_stopped_and_points_to_resume(run_copy, capsys):
+    (run_copy / EVALUATION_FILE).unlink()  # the last thing a run writes
+    data, lines = status_of(run_copy, capsys)
+    resume = f"`python -m league.run --resume {run_copy}`"
+    assert (data["state"], data["finished"], data["training_done"]) == ("stopped", False, True)
+    assert data["next"] == f"resume with {resume}"
+    assert lines[0].startswith("stopped in its final evaluation (training done): iteration ")
+    assert lines[1] == f"resume with {resume}"
+
+
+def test_a_sigkilled_run_is_told_from_a_training_one(run_copy, capsys):
+    (run_copy / EVALUATION_FILE).unlink()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLD_THE_LOCK, str(run_copy)], stdout=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        data, lines = status_of(run_copy, capsys)
+        assert (data["state"], data["finished"], data["next"]) == ("training", False, None)
+        assert lines[0].startswith("training in its final evaluation") and "--resume" not in lines[1]
+    finally:
+        holder.send_signal(signal.SIGKILL)
+        holder.wait(timeout=30)
+    data, lines = status_of(run_copy, capsys)  # the kernel dropped the lock with the process
+    assert (data["state"], data["finished"]) == ("stopped", False)
+    assert lines[1] == f"resume with `python -m league.run --resume {run_copy}`"
+
+
+def test_a_stopped_run_without_a_checkpoint_is_not_sent_to_resume(run_copy, capsys):
+    import shutil
+
+    (run_copy / EVALUATION_FILE).unlink()
+    shutil.rmtree(run_copy / "checkpoints")
+    data, lines = status_of(run_copy, capsys)
+    assert data["state"] == "stopped" and "--resume" not in data["next"] and "start the run again" in data["next"]
