@@ -105,7 +105,8 @@ def status_json(run_dir: Path, store: LeagueStore, state: str, source: str | Non
         "last_checkpoint": {"iteration": usable[0][0], "path": usable[0][1]} if usable else None,
         "warnings": problems,
         "players": rows,
-        "meta_game": meta.as_json() if meta is not None else {"none": why_not},
+        "meta_game": meta.as_json() if meta is not None else None,
+        "no_meta_game": why_not if meta is None else None,  # why ``meta_game`` is null
     }
 
 

@@ -8,11 +8,13 @@ SIGKILLed run by that process killed.
 import json
 import os
 import signal
+import sqlite3
 import subprocess
 import sys
 from pathlib import Path
 
 from league import status
+from league.state.store import LeagueStore
 
 EVALUATION_FILE = "evaluation.md"  # the last file a run writes
 
@@ -74,3 +76,21 @@ def test_a_stopped_run_without_a_checkpoint_is_not_sent_to_resume(run_copy, caps
     shutil.rmtree(run_copy / "checkpoints")
     data, lines = status_of(run_copy, capsys)
     assert data["state"] == "stopped" and "--resume" not in data["next"] and "start the run again" in data["next"]
+
+
+def drop_evaluations_of(run_dir: Path, player: str) -> None:
+    """Forget every evaluation game of ``player`` (its pairs then lack an evaluation)."""
+    store = LeagueStore(run_dir)
+    player_id = next(p.id for p in store.players() if p.name == player)
+    store.close()
+    with sqlite3.connect(run_dir / "league.db") as db:
+        db.execute("DELETE FROM matches WHERE source = 'evaluation' AND (attacker = ?1 OR team = ?1)", (player_id,))
+
+
+def test_no_meta_game_is_null_with_the_reason_beside_it(run_copy, capsys):
+    data, _ = status_of(run_copy, capsys)
+    assert data["meta_game"]["players"] and data["no_meta_game"] is None
+    drop_evaluations_of(run_copy, "team-v1")
+    data, _ = status_of(run_copy, capsys)
+    assert data["meta_game"] is None
+    assert data["no_meta_game"] == "3 of 9 pairs of frozen players not evaluated yet (python -m league.evaluate plays them)"
