@@ -16,10 +16,11 @@ from league.state.store import LeagueStore
 
 
 def league_table(store: LeagueStore, source: str | None = None) -> Table:
-    """Players with rating, games and win rate over their games of ``source``, each game counted once."""
+    """Players with rating, games and win rate over their games of ``source``, each game counted once;
+    no rating for a player without games of ``source`` (nothing it rests on there)."""
     ratings = store.latest_ratings()
     payoff = aggregate(store.counted_results(source))
-    table = Table(title="league", caption="rating: none for a player without games (nothing to fit)")
+    table = Table(title="league", caption=f"rating: none for a player without games{' of ' + source if source else ''}")
     for column in ("player", "side", "kind", "reward", "parent", "env steps", "rating", "games", "win rate"):
         table.add_column(column, justify="right" if column in ("env steps", "rating", "games", "win rate") else "left")
     players = store.players()
@@ -33,7 +34,7 @@ def league_table(store: LeagueStore, source: str | None = None) -> Table:
             str(player.reward_method or ""),
             names.get(player.parent, ""),
             str(player.env_steps),
-            f"{ratings[player.id]:.0f}" if player.id in ratings else "",
+            f"{ratings[player.id]:.0f}" if player.id in ratings and games else "",
             str(games),
             f"{wins / games:.3f}" if games else "",
         )
@@ -86,7 +87,7 @@ def status_json(run_dir: Path, store: LeagueStore, state: str, source: str | Non
         wins, games = player_record(payoff, player.side, player.id)
         rows.append({
             "player": player.name, "side": player.side, "kind": player.kind, "reward_method": player.reward_method,
-            "parent": names.get(player.parent), "env_steps": player.env_steps, "rating": ratings.get(player.id),
+            "parent": names.get(player.parent), "env_steps": player.env_steps, "rating": ratings.get(player.id) if games else None,
             "games": games, "wins": wins, "win_rate": wins / games if games else None,
         })
     meta, why_not = league_meta_game(players, store.newest_evaluation_rows())

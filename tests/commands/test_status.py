@@ -94,3 +94,17 @@ def test_no_meta_game_is_null_with_the_reason_beside_it(run_copy, capsys):
     data, _ = status_of(run_copy, capsys)
     assert data["meta_game"] is None
     assert data["no_meta_game"] == "3 of 9 pairs of frozen players not evaluated yet (python -m league.evaluate plays them)"
+
+
+def test_no_rating_beside_no_games_of_the_source(run_copy, capsys):
+    drop_evaluations_of(run_copy, "team")  # the learner, which also trained
+    assert status.main(["--run-dir", str(run_copy), "--source", "evaluation", "--json"]) == 0
+    rows = {row["player"]: row for row in json.loads(capsys.readouterr().out)["players"]}
+    assert (rows["team"]["games"], rows["team"]["rating"]) == (0, None)
+    assert all(row["rating"] is not None for name, row in rows.items() if row["games"])
+    assert status.main(["--run-dir", str(run_copy), "--source", "evaluation"]) == 0
+    table = [[cell.strip() for cell in line.split("│")[1:-1]] for line in capsys.readouterr().out.splitlines()]
+    assert next(cells for cells in table if cells[:1] == ["team"])[-3:] == ["", "0", ""]  # rating, games, win rate
+    assert status.main(["--run-dir", str(run_copy), "--json"]) == 0  # its training games carry its rating
+    rows = {row["player"]: row for row in json.loads(capsys.readouterr().out)["players"]}
+    assert rows["team"]["games"] > 0 and rows["team"]["rating"] is not None
