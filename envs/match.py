@@ -5,14 +5,17 @@ A *controller* picks one agent's actions: anything with ``act(game) -> (N, 2)``,
 evaluation plays its games with the rollout (``league.rollout.games``), which gives the same
 outcomes on the same games (``tests/evaluation/test_engine.py``).
 
-``python -m envs.match --episodes 1000`` prints the scripted-vs-scripted win rates;
-``--by-class`` adds each matchup's attacker win rate on the games of each start class
-(``envs.start_classes``: T-race, A-certain, contested) and the class counts of the games.
+``python -m envs.match --episodes 1000`` (``envs-match`` once installed) prints the
+scripted-vs-scripted win rates; ``--by-class`` adds each matchup's attacker win rate on the
+games of each start class (``envs.start_classes``: T-race, A-certain, contested) and the class
+counts of the games; ``--version`` the installed package's version (read from its metadata:
+``envs`` knows nothing of ``league``, whose commands print the same number).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import sys
 from dataclasses import dataclass, field
 from typing import Iterator, Protocol
@@ -25,6 +28,8 @@ from envs.core import BatchedGame
 from envs.scenarios import SCENARIO_SETS, evaluation_scenarios
 from envs.scripted import PLAYERS, ScriptedPlayer
 from envs.start_classes import StartClass, class_counts, classify, win_rates_by_class
+
+DISTRIBUTION = "target-defense-league"  # pyproject.toml's project name
 
 
 class Controller(Protocol):
@@ -94,8 +99,19 @@ def scripted_table(config: GameConfig, episodes: int) -> list[tuple[str, str, st
     ]
 
 
+def package_version() -> str:
+    """The installed package's version (pyproject.toml's), or why there is none."""
+    try:
+        return importlib.metadata.version(DISTRIBUTION)
+    except importlib.metadata.PackageNotFoundError:
+        return f"unknown ({DISTRIBUTION} is not installed: pip install -e .)"
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="Scripted-vs-scripted attacker win rates on fixed seeded games.")
+    parser = argparse.ArgumentParser(
+        prog="python -m envs.match", description="Scripted-vs-scripted attacker win rates on fixed seeded games."
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     parser.add_argument("--episodes", type=int, default=1000)
     parser.add_argument("--scenario", default="default", choices=sorted(SCENARIO_SETS))
     parser.add_argument(

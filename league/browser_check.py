@@ -4,7 +4,8 @@ Loads the page, collects console errors, uncaught exceptions and every URL it re
 besides itself (a self-contained page requests none), counts the plotly figures and the
 WebGL canvases of the 3D scenes, and saves a screenshot of the first trajectory scene
 (``--screenshot``). Exit code 1 when the page shows an error, fetches anything or lacks
-a 3D scene, 2 when no Chromium is installed (Debian: ``apt-get install chromium``).
+a 3D scene (a ``failed:`` line on stderr for each), 2 when no Chromium is installed
+(Debian: ``apt-get install chromium``).
 
 Chromium is driven through the DevTools protocol over a pipe (``--remote-debugging-pipe``:
 JSON messages ending in NUL on file descriptors 3 and 4), so nothing but the standard
@@ -43,7 +44,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"console error: {error}")
     for url in check.fetched:
         print(f"requested: {url}")
-    return 0 if not check.errors and not check.fetched and check.scenes > 0 else 1
+    problems = check.problems()
+    for problem in problems:
+        print(f"failed: {problem}", file=sys.stderr)
+    return 1 if problems else 0
 
 
 if __name__ == "__main__":

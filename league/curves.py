@@ -1,4 +1,7 @@
-"""Learning curves of several runs of one config: ``python -m league.curves --run-dirs A B C --out DIR``.
+"""Learning curves of several runs of one config: ``python -m league.curves --run-dirs A B C [--out DIR]``.
+
+``DIR`` defaults to ``curves/`` beside the first run directory (``runs/curves`` for
+``--run-dirs runs/s0 runs/s1``).
 
 One thin line per run (seed), their mean, and the scripted and untrained reference lines,
 in ``OUT/curves.png``, with the last points in ``OUT/curves.md`` (``league.studies.curves``).
@@ -12,7 +15,14 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+
 from league.cli import command_parser
+
+
+def default_out(run_dirs: list[Path]) -> Path:
+    """``curves/`` beside the first run directory: the runs' parent folder, not the current one."""
+    return run_dirs[0].resolve().parent / "curves"
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = command_parser(
@@ -22,13 +32,14 @@ def main(argv: list[str] | None = None) -> int:
         "writes OUT/curves.png, OUT/generations.png and OUT/curves.md.",
     )
     parser.add_argument("--run-dirs", type=Path, nargs="+", required=True)
-    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--out", type=Path, help="the folder to write (default: curves/ beside the first run directory)")
     args = parser.parse_args(argv)
+    out = args.out or default_out(args.run_dirs)
     from league.state.run_dir import RunDirError
     from league.studies.curves import study
 
     try:
-        png, md = study(args.run_dirs, args.out)
+        png, md = study(args.run_dirs, out)
     except (RunDirError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -2,7 +2,8 @@
 ``python -m league.replay --run-dir DIR --attacker NAME --team NAME [--game K] [--out PATH]``.
 
 Plays game ``K`` of the run's fixed evaluation games (the ones every evaluation plays, with
-deterministic actions) between any attacker and any team of the league, scripted or trained,
+deterministic actions; ``K`` from 0 to the run's ``evaluation.episodes`` - 1, others are refused)
+between any attacker and any team of the league, scripted or trained,
 and writes it as an interactive 3D page (the report's trajectory scene: rotate, zoom, step
 through) and as a PNG beside it (``envs.render``). By default both go into the run directory,
 named after the pair: ``replay-ATTACKER-vs-TEAM-gameK.html`` and ``.png``.
@@ -27,12 +28,21 @@ def find_player(players: list[Player], name: str, side: str) -> Player:
     return playable[name]
 
 
+def check_game(game: int, episodes: int) -> None:
+    """Refuse a game the run's evaluation does not play (its first ``episodes`` fixed games)."""
+    if game >= episodes:
+        raise ValueError(
+            f"--game {game} is not one of the run's {episodes} fixed evaluation games: "
+            f"give 0 to {episodes - 1} (evaluation.episodes)"
+        )
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = command_parser(prog="python -m league.replay", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
     parser.add_argument("--attacker", required=True, help="an attacker of the league (league.status lists them)")
     parser.add_argument("--team", required=True, help="a team of the league")
-    parser.add_argument("--game", type=count(0), default=0, help="which fixed evaluation game (default 0)")
+    parser.add_argument("--game", type=count(0), default=0, help="which fixed evaluation game, 0 to the run's evaluation.episodes - 1 (default 0)")
     parser.add_argument("--out", type=Path, help="the HTML page to write (the PNG goes beside it, .png)")
     args = parser.parse_args(argv)
     try:
@@ -41,6 +51,7 @@ def main(argv: list[str] | None = None) -> int:
             players = store.players()
         finally:
             store.close()
+        check_game(args.game, run.evaluation.episodes)
         attacker = find_player(players, args.attacker, "attacker")
         team = find_player(players, args.team, "team")
     except (RunDirError, ValueError) as err:

@@ -28,6 +28,7 @@ if __name__ == "__main__":  # the imports below take seconds (torch, Ray); main(
 
 import argparse
 import logging
+import os
 import shutil
 import time
 from pathlib import Path
@@ -75,12 +76,32 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def prepare_new_run_dir(run: RunConfig, run_dir: Path | None) -> Path:
     run_dir = run_dir or Path("runs") / f"{run.name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    if run_dir.exists() and not run_dir.is_dir():
-        raise RunDirError(f"--run-dir {run_dir} is a file, not a directory")
-    if run_dir.exists() and any(p.name != LOCK_FILE for p in run_dir.iterdir()):
-        hint = " (use --resume to continue it)" if (run_dir / DB_NAME).exists() else ""
-        raise RunDirError(f"run directory {run_dir} exists and is not empty{hint}")
+    try:
+        if run_dir.exists() and not run_dir.is_dir():
+            raise RunDirError(f"--run-dir {run_dir} is a file, not a directory")
+        if run_dir.exists() and any(p.name != LOCK_FILE for p in run_dir.iterdir()):
+            hint = " (use --resume to continue it)" if (run_dir / DB_NAME).exists() else ""
+            raise RunDirError(f"run directory {run_dir} exists and is not empty{hint}")
+    except OSError as err:  # a folder on the way that this user may not read
+        raise RunDirError(f"cannot use the run directory {run_dir}: {err.strerror or err}") from None
     return run_dir
+
+
+def make_run_dir(run_dir: Path) -> None:
+    """``mkdir -p run_dir``, or a ``RunDirError`` naming the path and why it cannot be made (a file
+    on the way, no permission, ...), with the folders this call made before it failed removed."""
+    to_make = [p for p in [run_dir, *run_dir.parents] if not os.path.exists(p)]  # deepest first
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        for path in to_make:
+            try:
+                path.rmdir()  # only an empty folder: one this call made
+            except OSError:
+                pass
+        blocker = next((p for p in run_dir.parents if os.path.exists(p)), None)
+        why = f"{blocker} is a file, not a directory" if blocker and not os.path.isdir(blocker) else err.strerror or str(err)
+        raise RunDirError(f"cannot create the run directory {run_dir}: {why}") from None
 
 
 def start_ray(run: RunConfig, address: str | None) -> None:
@@ -164,7 +185,7 @@ def open_for_training(args: argparse.Namespace) -> tuple[RunConfig, Path, League
     run = load_config(args.config, args.overrides)
     run_dir = prepare_new_run_dir(run, args.run_dir).resolve()
     created = not run_dir.exists()
-    run_dir.mkdir(parents=True, exist_ok=True)
+    make_run_dir(run_dir)
     try:
         lock = lock_run(run_dir)
         prepare_new_run_dir(run, run_dir)  # again, under the lock: another run may have started here

@@ -1,6 +1,8 @@
 """Print the league table of a run: ``python -m league.status --run-dir DIR``.
 
-Reads only the league database, so it works while ``league.run`` trains.
+Reads only the league database, so it works while ``league.run`` trains. The first line says
+whether the run is training (a live process holds its lock), stopped (none does: interrupted,
+killed or crashed; the next line says how to resume it) or finished (its final evaluation written).
 """
 
 from __future__ import annotations
@@ -12,8 +14,10 @@ from pathlib import Path
 from rich.console import Console
 
 from league.cli import command_parser
-from league.reports.status import exploitability_section, league_table, nash_section, run_line, status_json
-from league.state.run_dir import RunDirError, open_run, usable_checkpoints
+from league.reports.status import (
+    exploitability_section, league_table, nash_section, next_step, run_line, status_json,
+)
+from league.state.run_dir import RunDirError, open_run, run_state, usable_checkpoints
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -27,13 +31,17 @@ def main(argv: list[str] | None = None) -> int:
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    state = run_state(args.run_dir)
     if args.json:
-        print(json.dumps(status_json(args.run_dir, store, args.source), indent=1))
+        print(json.dumps(status_json(args.run_dir, store, state, args.source), indent=1))
         store.close()
         return 0
     console = Console() if sys.stdout.isatty() else Console(width=160)
-    console.print(run_line(store))
+    console.print(run_line(store, state))
     usable, problems = usable_checkpoints(args.run_dir, store)
+    hint = next_step(args.run_dir, state, usable)
+    if hint:
+        console.print(hint, markup=False, soft_wrap=True)
     if usable:
         console.print(f"last checkpoint: iteration {usable[0][0]} at {usable[0][1]}")
     for problem in problems:

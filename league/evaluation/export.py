@@ -42,7 +42,10 @@ class ExportedPolicy(nn.Module):
         # A batch of another width (another agent's observation, a wrong layout) is refused, not
         # sliced: in TorchScript here; `torch.export` and ONNX check the traced shape themselves.
         if observation.dim() != 2 or observation.size(1) != self.observation_size:
-            raise ValueError("observation must be a float32 batch (B, size) of this agent's observation size (metadata.json)")
+            raise ValueError(
+                "observation must be a float32 batch (B, {}), this agent's observation size (metadata.json); "
+                "got shape {}".format(self.observation_size, [int(n) for n in observation.shape])
+            )
         return self.actor(split_policy_input(observation, self.observation_size)[0])
 
 

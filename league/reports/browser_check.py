@@ -44,6 +44,19 @@ class PageCheck:
     scenes: int = 0  # 3D scenes with a WebGL canvas
     screenshot: bytes = b""  # PNG of the first trajectory scene
 
+    def problems(self) -> list[str]:
+        """Why the page fails the check, one line each (empty: it passes)."""
+        found = []
+        if self.errors:
+            found.append(f"{len(self.errors)} console errors (listed above)")
+        if self.fetched:
+            found.append(f"{len(self.fetched)} requests besides the page (listed above): a report page is self-contained")
+        if self.scenes == 0 and self.figures == 0:
+            found.append("no plotly figure and no 3D scene: not a report page (league.report writes RUN_DIR/report/index.html)")
+        elif self.scenes == 0:
+            found.append(f"{self.figures} figures but no 3D scene with a WebGL canvas: a report page draws its trajectories in 3D")
+        return found
+
 
 class DevTools:
     """A minimal DevTools protocol client over Chromium's pipe."""

@@ -11,15 +11,16 @@ from league.analysis.nash import (
     GROUP_HEADER, GROUP_NOTE, GROUP_TITLE, META_GAME_NOTE, MIXTURE_HEADER, MIXTURE_TITLE, league_meta_game,
 )
 from league.core.payoff import aggregate, player_record
-from league.state.run_dir import usable_checkpoints
+from league.state.run_dir import FINISHED, STOPPED, usable_checkpoints
 from league.state.store import LeagueStore
 
 
 def league_table(store: LeagueStore, source: str | None = None) -> Table:
-    """Players with rating, games and win rate over their games of ``source``, each game counted once."""
+    """Players with rating, games and win rate over their games of ``source``, each game counted once;
+    no rating for a player without games of ``source`` (nothing it rests on there)."""
     ratings = store.latest_ratings()
     payoff = aggregate(store.counted_results(source))
-    table = Table(title="league", caption="rating: none for a player without games (nothing to fit)")
+    table = Table(title="league", caption=f"rating: none for a player without games{' of ' + source if source else ''}")
     for column in ("player", "side", "kind", "reward", "parent", "env steps", "rating", "games", "win rate"):
         table.add_column(column, justify="right" if column in ("env steps", "rating", "games", "win rate") else "left")
     players = store.players()
@@ -33,7 +34,7 @@ def league_table(store: LeagueStore, source: str | None = None) -> Table:
             str(player.reward_method or ""),
             names.get(player.parent, ""),
             str(player.env_steps),
-            f"{ratings[player.id]:.0f}" if player.id in ratings else "",
+            f"{ratings[player.id]:.0f}" if player.id in ratings and games else "",
             str(games),
             f"{wins / games:.3f}" if games else "",
         )
@@ -71,10 +72,10 @@ def exploitability_section(store: LeagueStore) -> list:
     return [table]
 
 
-def status_json(run_dir: Path, store: LeagueStore, source: str | None = None) -> dict:
-    """What the tables say, as data (``--json``; the schema is in docs/training.md, "Status")."""
+def status_json(run_dir: Path, store: LeagueStore, state: str, source: str | None = None) -> dict:
+    """What the tables say, as data (``--json``; the schema is in docs/training.md, "Status");
+    ``state`` is ``run_dir.run_state``'s."""
     last = store.last_iteration()
-    checkpoint = store.last_checkpoint()
     seconds = store.training_seconds()
     usable, problems = usable_checkpoints(run_dir, store)
     ratings = store.latest_ratings()
@@ -86,12 +87,15 @@ def status_json(run_dir: Path, store: LeagueStore, source: str | None = None) ->
         wins, games = player_record(payoff, player.side, player.id)
         rows.append({
             "player": player.name, "side": player.side, "kind": player.kind, "reward_method": player.reward_method,
-            "parent": names.get(player.parent), "env_steps": player.env_steps, "rating": ratings.get(player.id),
+            "parent": names.get(player.parent), "env_steps": player.env_steps, "rating": ratings.get(player.id) if games else None,
             "games": games, "wins": wins, "win_rate": wins / games if games else None,
         })
     meta, why_not = league_meta_game(players, store.newest_evaluation_rows())
     return {
-        "finished": bool(checkpoint and checkpoint[2].get("training_done", False)),
+        "state": state,
+        "finished": state == FINISHED,
+        "training_done": training_done(store),
+        "next": next_step(run_dir, state, usable),
         "iteration": last["iteration"] if last else 0,
         "phase": last["phase"] + 1 if last else None,
         "learner_side": last["learner_side"] if last else None,
@@ -102,18 +106,38 @@ def status_json(run_dir: Path, store: LeagueStore, source: str | None = None) ->
         "last_checkpoint": {"iteration": usable[0][0], "path": usable[0][1]} if usable else None,
         "warnings": problems,
         "players": rows,
-        "meta_game": meta.as_json() if meta is not None else {"none": why_not},
+        "meta_game": meta.as_json() if meta is not None else None,
+        "no_meta_game": why_not if meta is None else None,  # why ``meta_game`` is null
     }
 
 
-def run_line(store: LeagueStore) -> str:
-    """Where the run stands: finished or at which phase, and its average speed so far."""
+def training_done(store: LeagueStore) -> bool:
+    """Whether the run trained its last iteration (its final evaluation may still be to come)."""
+    checkpoint = store.last_checkpoint()
+    return bool(checkpoint and checkpoint[2].get("training_done", False))
+
+
+def next_step(run_dir: Path, state: str, usable: list) -> str | None:
+    """What to do with a stopped run (``None`` for one training or finished)."""
+    if state != STOPPED:
+        return None
+    if not usable:
+        return f"nothing to resume (no intact checkpoint): delete it (rm -r {run_dir}) and start the run again"
+    return f"resume with `python -m league.run --resume {run_dir}`"
+
+
+def run_line(store: LeagueStore, state: str) -> str:
+    """Where the run stands: training (a live process holds its lock), stopped (none does, and its
+    final evaluation is not written) or finished; at which phase, and its average speed so far."""
     last = store.last_iteration()
     if not last:
-        return "no iteration finished yet"
-    checkpoint = store.last_checkpoint()
-    finished = checkpoint is not None and checkpoint[2].get("training_done", False)
-    where = "finished" if finished else f"phase {last['phase'] + 1} ({last['learner_side']} learning)"
+        return f"{state}: no iteration finished yet"
+    if state == FINISHED:
+        where = "finished"
+    elif training_done(store):
+        where = f"{state} in its final evaluation (training done)"
+    else:
+        where = f"{state} in phase {last['phase'] + 1} ({last['learner_side']} learning)"
     seconds = store.training_seconds()
     speed = f"{last['env_steps'] / seconds:.0f} env steps/s on average" if seconds > 0 else "no timing"
     return (

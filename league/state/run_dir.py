@@ -14,11 +14,16 @@ Only one process trains a run at a time: ``lock_run`` takes an exclusive ``flock
 kernel drops the lock when the holder exits, however it exits, so a killed run never
 leaves a stale lock. Readers (``status``, ``evaluate``, ``report``, ``export``) take no
 lock: SQLite's WAL mode lets them read while training writes.
+
+``run_state`` tells the three states of a run apart: *training* (a live process holds the
+lock), *finished* (its final evaluation written: ``evaluation.md`` is the last file a run
+writes) and *stopped* (neither: stopped, killed or crashed, to be resumed).
 """
 
 from __future__ import annotations
 
 import errno
+import fcntl
 import hashlib
 import json
 import os
@@ -32,6 +37,8 @@ from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, added_at_its_
 from league.state.store import DB_NAME, DamagedStoreError, LeagueStore
 
 LOCK_FILE = "run.lock"
+EVALUATION_FILE = "evaluation.md"  # the run's final evaluation, the last file it writes (``Coordinator.finish``)
+TRAINING, STOPPED, FINISHED = "training", "stopped", "finished"  # ``run_state``
 MANIFEST_FILE = "league_manifest.json"
 CONFIG_META = "config"  # the validated config as created, in the store's meta table
 CONFIG_HASH_META = "config_hash"
@@ -150,6 +157,33 @@ def lock_run(run_dir: Path) -> FileLock:
             "league.status, evaluate and report can read the run meanwhile"
         ) from None
     return lock
+
+
+def lock_is_held(run_dir: Path) -> bool:
+    """Whether a live process holds the run's lock, found by asking for a shared ``flock`` without
+    waiting and letting it go at once; nothing is written (the file is opened read-only). A
+    ``league.run`` that tries to take the lock in those microseconds is refused as if the run
+    were in use."""
+    try:
+        fd = os.open(run_dir / LOCK_FILE, os.O_RDONLY)
+    except OSError:  # no lock file: nothing ever trained here
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)  # closing drops the shared lock, if it was granted
+    return False
+
+
+def run_state(run_dir: Path) -> str:
+    """``TRAINING`` while a live process holds the lock (training, evaluating or starting), else
+    ``FINISHED`` once the final evaluation is written, else ``STOPPED`` (interrupted, killed or
+    crashed; ``league.run --resume`` goes on)."""
+    if lock_is_held(run_dir):
+        return TRAINING
+    return FINISHED if (run_dir / EVALUATION_FILE).exists() else STOPPED
 
 
 def checkpoint_directory(run_dir: Path, iteration: int) -> Path:

@@ -71,3 +71,25 @@ def test_the_test_games_are_held_out_from_the_dev_games(run_copy, capsys):
         assert (wins, sum(r.count for r in test_rows if (r.attacker, r.team) == (ids[attacker], ids[team]))) == (pair["attacker_wins"], 8)
     assert main([*args, "--games", "dev", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["games"] == "dev"
+
+
+def test_json_has_the_table_per_reward_method(run_copy, capsys):
+    args = ["--run-dir", str(run_copy), "--workers", "0", "--episodes", "4"]
+    assert main(args) == 0
+    lines = capsys.readouterr().out.splitlines()
+    at = next(k for k, line in enumerate(lines) if line.startswith("| reward method | attacker |"))
+    header = [cell.strip() for cell in lines[at].strip("|").split("|")]
+    end = lines.index("", at)
+    rows = [[cell.strip() for cell in line.strip("|").split("|")] for line in lines[at + 2:end]]
+    assert main([*args, "--json"]) == 0
+    methods = json.loads(capsys.readouterr().out)["methods"]
+    # The same numbers as the printed table (method_table), cell for cell.
+    assert [[str(m["reward_method"]), m["attacker"]] for m in methods] == [row[:2] for row in rows]
+    for method, row in zip(methods, rows):
+        assert [c["against"] for c in method["columns"]] == header[2:]
+        for cell, printed in zip(method["columns"], row[2:]):
+            low, high = cell["interval_95"]
+            assert f"{cell['attacker_win_rate']:.3f} [{low:.3f}, {high:.3f}]" == printed
+            assert cell["attacker_win_rate"] == cell["attacker_wins"] / cell["games"]
+    pool = methods[0]["columns"][-1]
+    assert pool["against"] == "league pool" and pool["games"] == 4 * len(pool["teams"]) and pool["starts"] == 4

@@ -177,3 +177,15 @@ def test_the_torchscript_archive_is_named_after_its_file(run_dir, tmp_path):
     names = zipfile.ZipFile(out).namelist()
     assert names and all(name.startswith("attacker/") for name in names), names[:3]
     assert [p.name for p in tmp_path.iterdir()] == ["attacker.pt"]  # nothing left beside it
+
+
+def test_the_torchscript_width_error_gives_the_expected_and_the_given_shape(run_dir, tmp_path):
+    torch.set_num_threads(1)
+    out = tmp_path / "attacker.pt"
+    assert export_main(["--run-dir", str(run_dir), "--player", "latest-attacker", "--format", "torchscript", "--out", str(out)]) == 0
+    policy = torch.jit.load(str(out))
+    size = load_module(run_dir / "players" / "attacker-m2-v1").actor_inputs
+    for wrong, shape in ((torch.zeros(1, 23), "[1, 23]"), (torch.zeros(size), f"[{size}]")):
+        with pytest.raises(Exception, match=rf"batch \(B, {size}\).*got shape \[") as raised:
+            policy(wrong)
+        assert f"got shape {shape}" in str(raised.value)

@@ -150,11 +150,12 @@ def test_browser_check_reports_console_errors(tmp_path):
 
 def test_status_of_a_finished_run_says_finished_with_its_average_speed(tiny_run):
     from league.reports.status import run_line
+    from league.state.run_dir import run_state
 
     store = LeagueStore(tiny_run)
     try:
         last, seconds = store.last_iteration(), store.training_seconds()
-        line = run_line(store)
+        line = run_line(store, run_state(tiny_run))
     finally:
         store.close()
     assert line.startswith(f"finished: iteration {last['iteration']}, {last['env_steps']} env steps")
