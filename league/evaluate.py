@@ -28,39 +28,12 @@ import torch
 from league.evaluation.engine import PairEvaluation, evaluate_pairs
 from league.evaluation.panel import add_scripted
 from league.evaluation.results import last_iteration, record_evaluations
-from league.evaluation.tables import format_table, latest_by_method, method_table
+from league.evaluation.tables import format_table, method_rows, method_table
 from league.analysis.nash import format_meta_game, meta_game, meta_game_players
 from league.analysis.statistics import wilson_interval
 from league.cli import command_parser, count
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
-
-
-def method_json(results: list[PairEvaluation]) -> list[dict]:
-    """The table per attacker reward method (``league.evaluation.tables.method_table``) as data: each
-    method's newest attacker snapshot against each scripted team, the newest team snapshot and the
-    whole league pool, with the same 95% Wilson interval over the fixed starts (``starts``) of a column."""
-    attackers = latest_by_method([r.attacker for r in results])
-    teams = sorted({r.team.id: r.team for r in results}.values(), key=lambda p: p.id)
-    scripted = [t for t in teams if t.kind == "scripted"]
-    trained = [t for t in teams if t.kind == "snapshot"][-1:]
-    columns = [(t.name, [t]) for t in scripted + trained] + [("league pool", teams)]
-    rows = []
-    for method, attacker in sorted(attackers.items()):
-        cells = []
-        for name, group in columns:
-            ids = {t.id for t in group}
-            chosen = [r for r in results if r.attacker.id == attacker.id and r.team.id in ids]
-            wins, games = sum(r.attacker_wins for r in chosen), sum(r.games for r in chosen)
-            cell = {"against": name, "teams": [t.name for t in group], "games": games, "attacker_wins": wins,
-                    "attacker_win_rate": None, "starts": 0, "interval_95": None}
-            if games:
-                starts = max(r.games for r in chosen)  # why the interval counts starts: method_table
-                cell.update(attacker_win_rate=wins / games, starts=starts,
-                            interval_95=list(wilson_interval(wins / games * starts, starts)))
-            cells.append(cell)
-        rows.append({"reward_method": method, "attacker": attacker.name, "columns": cells})
-    return rows
 
 
 def evaluation_json(scenario: str, games: str, episodes: int, results: list[PairEvaluation], meta: Any) -> dict:
@@ -74,7 +47,7 @@ def evaluation_json(scenario: str, games: str, episodes: int, results: list[Pair
             "outcomes": dict(r.result.outcome_counts()),
         })
     return {
-        "scenario": scenario, "games": games, "episodes": episodes, "pairs": pairs, "methods": method_json(results),
+        "scenario": scenario, "games": games, "episodes": episodes, "pairs": pairs, "methods": method_rows(results),
         "meta_game": meta.as_json() if meta else None,
     }
 

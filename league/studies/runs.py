@@ -9,12 +9,12 @@ import sys
 from pathlib import Path
 
 from league.config import RUN_CONFIG_FILE, added_at_its_default, changed_keys, load_config
-from league.state.run_dir import RunDirError, lock_run, read_config
+from league.state.run_dir import EVALUATION_FILE, RunDirError, lock_run, read_config
 
 
 def finished(run_dir: Path) -> bool:
     """A run whose training and final evaluation completed (``evaluation.md`` is written last)."""
-    return (run_dir / "evaluation.md").exists()
+    return (run_dir / EVALUATION_FILE).exists()
 
 
 def resumable(run_dir: Path) -> bool:

@@ -47,14 +47,15 @@ from league.core.match_plan import MatchPlan
 from league.core.pfsp import with_scripted_share
 from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, other_side
 from league.training.progress import IterationTiming, ProgressReporter, TimeSplit
-from league.state.run_dir import fresh_directory, prune_checkpoints, record_config, write_checkpoint, write_replacing
+from league.state.run_dir import (
+    EVALUATION_FILE, fresh_directory, prune_checkpoints, record_config, write_checkpoint, write_replacing,
+)
 from league.core.schedule import PhaseState, schedule_of
 from league.core.seeding import Purpose, stream
 from league.training.stop import StopRequests
 from league.state.store import DB_NAME, LeagueStore
 
 GAMES_FILE = "games_in_flight.pkl"  # in a checkpoint directory: the env runners' games in flight
-EVALUATION_FILE = "evaluation.md"
 
 
 @dataclass
