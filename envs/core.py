@@ -105,7 +105,8 @@ class BatchedGame:
     # ----------------------------------------------------------------- views
     @property
     def active(self) -> np.ndarray:
-        return self.outcome == RUNNING
+        running: np.ndarray = self.outcome == RUNNING
+        return running
 
     @property
     def time_left(self) -> np.ndarray:

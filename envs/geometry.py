@@ -7,24 +7,28 @@ import numpy as np
 
 def dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Dot products over the last axis (``einsum``: 2-3x faster than ``(u * v).sum(-1)`` on 3-vectors)."""
-    return np.einsum("...i,...i->...", u, v)
+    products: np.ndarray = np.einsum("...i,...i->...", u, v)
+    return products
 
 
 def norm(v: np.ndarray) -> np.ndarray:
-    return np.sqrt(dot(v, v))
+    lengths: np.ndarray = np.sqrt(dot(v, v))
+    return lengths
 
 
 def unit(v: np.ndarray) -> np.ndarray:
     """``v / |v|``, and zero where ``v`` is zero."""
     n = norm(v)[..., None]
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 1e-12)
+    units: np.ndarray = np.divide(v, n, out=np.zeros_like(v), where=n > 1e-12)
+    return units
 
 
 def angle_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Angle in ``[0, pi]`` between vectors ``(..., 3)``; 0 where either is zero."""
     lengths = np.sqrt(dot(u, u) * dot(v, v))
     cos = dot(u, v) / np.where(lengths > 0, lengths, 1.0)
-    return np.arccos(np.clip(np.where(lengths > 0, cos, 1.0), -1.0, 1.0))
+    angles: np.ndarray = np.arccos(np.clip(np.where(lengths > 0, cos, 1.0), -1.0, 1.0))
+    return angles
 
 
 def intercept_time(chaser: np.ndarray, speed: float, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
@@ -37,13 +41,15 @@ def intercept_time(chaser: np.ndarray, speed: float, target: np.ndarray, velocit
     r = target - chaser
     ru = dot(r, velocity)
     margin = speed**2 - dot(velocity, velocity)  # > 0 since the chaser is faster
-    return (ru + np.sqrt(ru * ru + margin * dot(r, r))) / margin
+    t_star: np.ndarray = (ru + np.sqrt(ru * ru + margin * dot(r, r))) / margin
+    return t_star
 
 
 def lead_intercept(chaser: np.ndarray, speed: float, target: np.ndarray, velocity: np.ndarray) -> np.ndarray:
     """Point where a chaser at ``speed`` meets a target moving at constant ``velocity``:
     ``target + velocity * t*`` (``intercept_time``)."""
-    return target + velocity * intercept_time(chaser, speed, target, velocity)[..., None]
+    meeting: np.ndarray = target + velocity * intercept_time(chaser, speed, target, velocity)[..., None]
+    return meeting
 
 
 def first_contact(start: np.ndarray, end: np.ndarray, radius: float | np.ndarray) -> np.ndarray:

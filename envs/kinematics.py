@@ -79,7 +79,8 @@ def wrap_to_pi(angle: np.ndarray) -> np.ndarray:
 def _sin_over(x: np.ndarray) -> np.ndarray:
     """``sin(x) / x``, 1 at 0."""
     small = np.abs(x) < SMALL_ANGLE
-    return np.where(small, 1.0 - x * x / 6.0, np.sin(x) / np.where(small, 1.0, x))
+    ratio: np.ndarray = np.where(small, 1.0 - x * x / 6.0, np.sin(x) / np.where(small, 1.0, x))
+    return ratio
 
 
 def _haversine(pitch: np.ndarray, yaw_change: np.ndarray, pitch_change: np.ndarray) -> np.ndarray:
@@ -89,12 +90,14 @@ def _haversine(pitch: np.ndarray, yaw_change: np.ndarray, pitch_change: np.ndarr
     ``sin^2(a / 2) = sin^2(d theta / 2) + cos(theta) cos(theta') sin^2(d phi / 2)``.
     """
     yaw_term = np.cos(pitch) * np.cos(pitch + pitch_change) * np.sin(0.5 * yaw_change) ** 2
-    return np.sin(0.5 * pitch_change) ** 2 + yaw_term
+    sin2_half_angle: np.ndarray = np.sin(0.5 * pitch_change) ** 2 + yaw_term
+    return sin2_half_angle
 
 
 def turn_angle(pitch: np.ndarray, yaw_change: np.ndarray, pitch_change: np.ndarray) -> np.ndarray:
     """True angle between heading ``(phi, pitch)`` and ``(phi + yaw_change, pitch + pitch_change)``."""
-    return 2.0 * np.arcsin(np.sqrt(np.clip(_haversine(pitch, yaw_change, pitch_change), 0.0, 1.0)))
+    angle: np.ndarray = 2.0 * np.arcsin(np.sqrt(np.clip(_haversine(pitch, yaw_change, pitch_change), 0.0, 1.0)))
+    return angle
 
 
 def _scale_to_angle(
@@ -247,7 +250,7 @@ class Arcs:
             end_positions[rows] = positions[rows] + (2.0 / np.pi) * speed[rows][..., None] * normal[rows]
         return cls(positions, start, normal, angle, speed, end_positions, end)
 
-    def take(self, index) -> "Arcs":
+    def take(self, index: np.ndarray | tuple[np.ndarray, ...]) -> "Arcs":
         """The arcs at ``index`` (anything that indexes the leading axes)."""
         fields = (self.start, self.tangent, self.normal, self.angle, self.speed, self.end, self.end_tangent)
         return Arcs(*(field[index] for field in fields))
@@ -263,7 +266,8 @@ class Arcs:
         x = angle * fraction
         along = speed * fraction * _sin_over(x)
         across = speed * fraction * 0.5 * x * _sin_over(0.5 * x) ** 2
-        return start + along[..., None] * tangent + across[..., None] * normal
+        positions: np.ndarray = start + along[..., None] * tangent + across[..., None] * normal
+        return positions
 
     @property
     def bow(self) -> np.ndarray:
@@ -272,7 +276,8 @@ class Arcs:
         The path's acceleration is ``v a`` (speed ``v`` on radius ``v / a``); a curve whose
         second derivative is at most ``M`` strays at most ``M / 8`` from its chord.
         """
-        return self.speed * self.angle / 8.0
+        bound: np.ndarray = self.speed * self.angle / 8.0
+        return bound
 
 
 def move(positions: np.ndarray, headings: np.ndarray, change: np.ndarray, speeds: np.ndarray) -> np.ndarray:

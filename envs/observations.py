@@ -47,7 +47,7 @@ gives its length from the config alone.
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Any, Callable, Protocol, Sequence, TypeVar
 
 import numpy as np
 
@@ -88,12 +88,21 @@ def policy_input(observation: np.ndarray, state: np.ndarray) -> np.ndarray:
     return np.concatenate((observation, state), axis=-1)
 
 
-def split_policy_input(inputs, own_size: int):
+_Array = TypeVar("_Array", bound="_Sliceable")
+
+
+class _Sliceable(Protocol):
+    """A numpy array or a torch tensor: indexing gives the same kind (``envs`` does not import torch)."""
+
+    def __getitem__(self: _Array, index: Any, /) -> _Array: ...
+
+
+def split_policy_input(inputs: _Array, own_size: int) -> tuple[_Array, _Array]:
     """``(own observation, global state)`` of policy inputs: numpy arrays or torch tensors, any leading axes."""
     return inputs[..., :own_size], inputs[..., own_size:]
 
 
-def role_of(observation):
+def role_of(observation: _Array) -> _Array:
     """The role one-hot that ends T's and D's own observation (numpy or torch, any leading axes)."""
     return observation[..., -ROLE_SIZE:]
 
@@ -143,7 +152,7 @@ def observe(
     return out
 
 
-def yaw_frame(yaw: np.ndarray):
+def yaw_frame(yaw: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """A function taking world vectors ``(N, 3)`` into the frame turned by ``yaw`` about z."""
     cos, sin = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
 

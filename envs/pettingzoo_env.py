@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from envs.agents import AGENTS
@@ -12,7 +13,7 @@ from envs.config import GameConfig
 from envs.single import SingleGame, state_space
 
 
-class TargetDefenseEnv(ParallelEnv):
+class TargetDefenseEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type information: ParallelEnv is Any
     """Attacker A chases targeter T, which flies to the terminal while defender D guards it.
 
     ## Description
@@ -92,7 +93,7 @@ class TargetDefenseEnv(ParallelEnv):
     Any field of ``envs.config.GameConfig`` as a keyword, or ``config=GameConfig(...)``.
     """
 
-    metadata = {"name": "target_defense_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
+    metadata: dict[str, Any] = {"name": "target_defense_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
 
     def __init__(self, config: GameConfig | None = None, render_mode: str | None = None, **overrides: Any):
         """``render_mode="rgb_array"``: ``render()`` returns the game so far as the picture of
@@ -109,13 +110,15 @@ class TargetDefenseEnv(ParallelEnv):
         self.render_mode = render_mode
         self._path: list[np.ndarray] = []  # positions (3, 3) after each step, for `render`
 
-    def observation_space(self, agent: str):
+    def observation_space(self, agent: str) -> spaces.Box:
         return self.observation_spaces[agent]
 
-    def action_space(self, agent: str):
+    def action_space(self, agent: str) -> spaces.Box:
         return self.action_spaces[agent]
 
-    def reset(self, seed: int | None = None, options: dict | None = None):
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
         positions = (options or {}).get("positions")
         if positions is not None:
             positions = np.asarray(positions)
@@ -129,7 +132,9 @@ class TargetDefenseEnv(ParallelEnv):
             self._path = [self.game.core.positions[0].copy()]
         return observations
 
-    def step(self, actions: dict[str, np.ndarray]):
+    def step(self, actions: dict[str, np.ndarray]) -> tuple[
+        dict[str, np.ndarray], dict[str, float], dict[str, bool], dict[str, bool], dict[str, dict[str, Any]]
+    ]:
         if not self.agents:
             raise RuntimeError("no game is running: call reset() before step() (and again after a game ends)")
         for agent, action in actions.items():

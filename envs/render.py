@@ -14,6 +14,7 @@ import matplotlib
 matplotlib.use("Agg")  # files only: no display on training machines
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.config import GameConfig
@@ -36,12 +37,13 @@ def episode_image(trajectory: np.ndarray, outcome: Outcome, config: GameConfig, 
     fig = episode_figure(trajectory, outcome, config, title)
     fig.set_dpi(110)
     fig.canvas.draw()
-    image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    # The Agg backend (set above) gives the figure an Agg canvas; matplotlib types it as the base canvas.
+    image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()  # type: ignore[attr-defined]
     plt.close(fig)
     return image
 
 
-def episode_figure(trajectory: np.ndarray, outcome: Outcome, config: GameConfig, title: str):
+def episode_figure(trajectory: np.ndarray, outcome: Outcome, config: GameConfig, title: str) -> Figure:
     """The matplotlib figure of ``plot_episode``."""
     fig = plt.figure(figsize=(7, 6))
     ax = fig.add_subplot(projection="3d")

@@ -34,7 +34,8 @@ def attacker_method1(
     closing_on_t = (d_at_prev - d_at) > METHOD1_THRESHOLD
     closing_on_d = (d_ad_prev - d_ad) > METHOD1_THRESHOLD
     reward = np.where(closing_on_t, np.where(closing_on_d, 30.0, 45.0), np.where(closing_on_d, 0.0, 3.0))
-    return reward / gamma_steps
+    paid: np.ndarray = reward / gamma_steps
+    return paid
 
 
 def attacker_method2(offset_angle: np.ndarray, sigma_a: float, gamma_steps: np.ndarray) -> np.ndarray:
@@ -56,7 +57,8 @@ def attacker_method2(offset_angle: np.ndarray, sigma_a: float, gamma_steps: np.n
     """
     x = offset_angle / sigma_a
     score = np.where(x <= 1, np.maximum(2 - x, 1), np.where(x <= 2, np.maximum(2 - x, 0), np.maximum(1 - x, -2)))
-    return score * 30.0 / gamma_steps
+    paid: np.ndarray = score * 30.0 / gamma_steps
+    return paid
 
 
 def attacker_method3(

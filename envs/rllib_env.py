@@ -29,14 +29,14 @@ class TargetDefenseMultiAgentEnv(MultiAgentEnv):
     """Same game as ``envs.pettingzoo_env.TargetDefenseEnv`` (see its docstring), RLlib API."""
 
     def __init__(self, env_config: dict[str, Any] | None = None):
-        super().__init__()
+        super().__init__()  # type: ignore[no-untyped-call]  # RLlib leaves MultiAgentEnv.__init__ unannotated
         env_config = dict(env_config or {})
         self.with_global_state = bool(env_config.pop("with_global_state", False))
         self.config = GameConfig(**env_config)
         self.game = SingleGame(self.config)
         self.possible_agents = list(AGENTS)
         self.agents = list(AGENTS)
-        self.action_spaces = dict(self.game.action_spaces)
+        self.action_spaces = {agent: self.game.action_spaces[agent] for agent in AGENTS}
         space = policy_input_space if self.with_global_state else observation_space
         self.observation_spaces = {agent: space(self.config, agent) for agent in AGENTS}
 
@@ -46,12 +46,18 @@ class TargetDefenseMultiAgentEnv(MultiAgentEnv):
         state = self.game.state()
         return {agent: policy_input(o, state) for agent, o in obs.items()}
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    # RLlib keys its dicts by ``AgentID`` (``Hashable | str``); this env's agents are the names of
+    # ``AGENTS``, and a dict is invariant in its key type: hence the two ``override`` ignores.
+    def reset(  # type: ignore[override]
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
         self.agents = list(AGENTS)
         obs, infos = self.game.reset(seed, (options or {}).get("positions"))
         return self._observe(obs), infos
 
-    def step(self, action_dict: dict[str, np.ndarray]):
+    def step(  # type: ignore[override]
+        self, action_dict: dict[str, np.ndarray]
+    ) -> tuple[dict[str, np.ndarray], dict[str, float], dict[str, bool], dict[str, bool], dict[str, dict[str, Any]]]:
         obs, rewards, done, infos = self.game.step(action_dict)
         terminateds = {agent: done for agent in AGENTS}
         terminateds["__all__"] = done

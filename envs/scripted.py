@@ -45,12 +45,22 @@ SHELTER_DISTANCE = 0.3
 
 
 class GameView(Protocol):
-    """What a scripted player reads of ``N`` games; ``envs.core.BatchedGame`` is one."""
+    """What a scripted player reads of ``N`` games; ``envs.core.BatchedGame`` is one.
 
-    config: GameConfig
-    positions: np.ndarray  # (N, 3 agents, 3)
-    headings: np.ndarray  # (N, 3 agents, 2): yaw, pitch
-    speeds: np.ndarray  # (3 agents,)
+    Read-only members, so that a frozen ``DecodedGames`` is one too.
+    """
+
+    @property
+    def config(self) -> GameConfig: ...
+
+    @property
+    def positions(self) -> np.ndarray: ...  # (N, 3 agents, 3)
+
+    @property
+    def headings(self) -> np.ndarray: ...  # (N, 3 agents, 2): yaw, pitch
+
+    @property
+    def speeds(self) -> np.ndarray: ...  # (3 agents,)
 
 
 @dataclass(frozen=True)
@@ -71,17 +81,20 @@ Direction = Callable[[GameView], np.ndarray]
 
 def _velocities(game: GameView) -> np.ndarray:
     """Current velocities ``(N, 3, 3)``: speed times heading."""
-    return heading_vectors(game.headings) * game.speeds[None, :, None]
+    velocities: np.ndarray = heading_vectors(game.headings) * game.speeds[None, :, None]
+    return velocities
 
 
 def attacker_pure_pursuit(game: GameView) -> np.ndarray:
-    return game.positions[:, TARGETER] - game.positions[:, ATTACKER]
+    direction: np.ndarray = game.positions[:, TARGETER] - game.positions[:, ATTACKER]
+    return direction
 
 
 def attacker_lead_intercept(game: GameView) -> np.ndarray:
     a, t = game.positions[:, ATTACKER], game.positions[:, TARGETER]
     aim = lead_intercept(a, game.config.v_attacker, t, _velocities(game)[:, TARGETER])
-    return aim - a
+    direction: np.ndarray = aim - a
+    return direction
 
 
 def attacker_proportional_navigation(game: GameView) -> np.ndarray:
@@ -100,7 +113,8 @@ def attacker_evade_defender(game: GameView) -> np.ndarray:
     # Equal speeds and D's turn limits keep a fleeing A out of reach: a team wins only by
     # flying T to the terminal while A is away, which a team that has only met attackers
     # coming at T may never learn.
-    return game.positions[:, ATTACKER] - game.positions[:, DEFENDER]
+    direction: np.ndarray = game.positions[:, ATTACKER] - game.positions[:, DEFENDER]
+    return direction
 
 
 def targeter_straight(game: GameView) -> np.ndarray:
@@ -140,7 +154,8 @@ def targeter_avoid_oncoming_attacker(game: GameView) -> np.ndarray:
 
 
 def defender_pure_pursuit(game: GameView) -> np.ndarray:
-    return game.positions[:, ATTACKER] - game.positions[:, DEFENDER]
+    direction: np.ndarray = game.positions[:, ATTACKER] - game.positions[:, DEFENDER]
+    return direction
 
 
 def defender_bisector_intercept(game: GameView) -> np.ndarray:
@@ -153,7 +168,8 @@ def defender_bisector_intercept(game: GameView) -> np.ndarray:
         s = -np.sum(offset * offset, axis=1) / denom
     reachable = (denom < 0) & (s <= 1.0)  # the crossing lies between A and T
     crossing = a + s[:, None] * path
-    return np.where(reachable[:, None], crossing - d, offset)
+    direction: np.ndarray = np.where(reachable[:, None], crossing - d, offset)
+    return direction
 
 
 PLAYERS: dict[str, dict[str, Direction]] = {
@@ -183,7 +199,8 @@ def direction_to_action(game: GameView, agent: int, direction: np.ndarray) -> np
         return desired
     yaw = wrap_to_pi(desired[:, 0] - current[:, 0]) / cfg.max_yaw_change
     pitch = (desired[:, 1] - current[:, 1]) / cfg.max_pitch_change
-    return np.clip(np.stack((yaw, pitch), axis=1), -1.0, 1.0)
+    action: np.ndarray = np.clip(np.stack((yaw, pitch), axis=1), -1.0, 1.0)
+    return action
 
 
 def act_from_state(config: GameConfig, agent: str, name: str, states: np.ndarray) -> np.ndarray:

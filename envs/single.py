@@ -50,7 +50,7 @@ class SingleGame:
 
     def reset(
         self, seed: int | None = None, positions: np.ndarray | None = None
-    ) -> tuple[dict[str, np.ndarray], dict[str, dict]]:
+    ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
         """Start a game drawn from the seeded generator, or from ``positions`` ``(3, 3)``."""
         if seed is not None:
             self.rng = np.random.default_rng(seed)
@@ -64,9 +64,12 @@ class SingleGame:
         return {agent: obs[0] for agent, obs in zip(AGENTS, self.core.observations())}
 
     def state(self) -> np.ndarray:
-        return self.core.global_state()[0]
+        state: np.ndarray = self.core.global_state()[0]
+        return state
 
-    def step(self, actions: dict[str, Any]) -> tuple[dict, dict, bool, dict]:
+    def step(
+        self, actions: dict[str, Any]
+    ) -> tuple[dict[str, np.ndarray], dict[str, float], bool, dict[str, dict[str, Any]]]:
         """Returns ``(observations, rewards, done, infos)``; ``done`` ends the game for all."""
         if not self.core.active[0]:
             raise RuntimeError("the game has ended: call reset() before step()")
@@ -104,7 +107,7 @@ def infos_of_steps(
     agents: Sequence[str] = AGENTS,
 ) -> dict[str, list[dict[str, Any]]]:
     """Info dicts of ``agents`` over consecutive steps of one game, from per-step values."""
-    common = [{"step": int(s), "time_limit": int(t)} for s, t in zip(steps, time_limits)]
+    common: list[dict[str, Any]] = [{"step": int(s), "time_limit": int(t)} for s, t in zip(steps, time_limits)]
     for info, outcome in zip(common, outcomes):
         if outcome != Outcome.RUNNING:
             ended = Outcome(int(outcome))

@@ -46,7 +46,8 @@ def _chord_distance(start: np.ndarray, end: np.ndarray) -> np.ndarray:
     length2 = dot(delta, delta)
     along = np.clip(-dot(start, delta) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
     closest = start + along[..., None] * delta
-    return np.sqrt(dot(closest, closest))
+    distance: np.ndarray = np.sqrt(dot(closest, closest))
+    return distance
 
 
 def _pick(arcs: Arcs, game: np.ndarray, body: np.ndarray) -> Arcs:
@@ -74,7 +75,8 @@ def first_contact_on_arcs(arcs: Arcs, pairs: np.ndarray, radius: np.ndarray) -> 
     other_body, moving = np.where(resting, 0, other), (~resting).astype(np.float64)
 
     def relative(field: np.ndarray) -> np.ndarray:  # (N, K, ...): one minus other
-        return np.take(field, one, axis=1) - np.take(field, other_body, axis=1) * moving[:, None]
+        difference: np.ndarray = np.take(field, one, axis=1) - np.take(field, other_body, axis=1) * moving[:, None]
+        return difference
 
     # A body flies at most its speed in a step: pairs farther apart than the radius plus
     # both speeds cannot touch (most pairs, most steps).

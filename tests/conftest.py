@@ -1,4 +1,5 @@
-"""Shared fixtures: one tiny finished league run for the tests that read a run directory."""
+"""Shared fixtures: one tiny finished league run for the tests that read a run directory, and a
+private Ray instance per test module for the tests that play or train in this process."""
 
 import atexit
 import os
@@ -39,6 +40,22 @@ def run_copy(tiny_run, tmp_path):
     copy = tmp_path / "run"
     shutil.copytree(tiny_run, copy)
     return copy
+
+
+@pytest.fixture(scope="module")
+def ray_instance():
+    """A Ray instance of this test module's own (2 CPUs, no dashboard), started for its first
+    test that asks and shut down once the module's tests are done.
+
+    ``address="local"`` starts a new instance whatever else runs (a cluster named by
+    ``RAY_ADDRESS``, another module's or another process's instance). A fixture that builds
+    on Ray asks for this one, so that pytest stops what it built before Ray.
+    """
+    import ray  # here: the modules that never start Ray do not import it
+
+    ray.init(address="local", num_cpus=2, include_dashboard=False)
+    yield
+    ray.shutdown()
 
 
 def pytest_sessionfinish(session, exitstatus):

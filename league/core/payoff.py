@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -28,6 +29,8 @@ ELO_SCALE = 400.0 / np.log(10.0)
 MEAN_RATING = 1000.0
 # A weak prior (one draw against an average player) keeps unbeaten players finite.
 PRIOR_GAMES = 1.0
+
+Counts = TypeVar("Counts", int, np.ndarray)  # a count of games, or counts per game
 
 
 def win_rate(wins: int, games: int) -> float:
@@ -50,12 +53,13 @@ def winner(outcome: str) -> str:
     return "attacker" if attacker_won(outcome) else "team"
 
 
-def wins_of(side: str, attacker_wins, games):
+def wins_of(side: str, attacker_wins: Counts, games: int | Counts) -> Counts:
     """Wins of ``side`` among ``games`` of which the attacker won ``attacker_wins``.
 
     Counts or numpy arrays of counts (``games`` 1 and 0/1 wins for single games).
     """
-    return attacker_wins if side == "attacker" else games - attacker_wins
+    wins: Counts = attacker_wins if side == "attacker" else games - attacker_wins
+    return wins
 
 
 @dataclass(frozen=True)

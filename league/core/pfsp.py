@@ -37,7 +37,8 @@ def pfsp_probabilities(
     total = weights.sum()
     if total <= 0:
         return np.full(x.shape, 1.0 / x.size)
-    return weights / total
+    probabilities: np.ndarray = weights / total
+    return probabilities
 
 
 def with_scripted_share(

@@ -88,8 +88,13 @@ class Player:
         if self.kind != "scripted":
             raise ValueError(f"{self.name} is not a scripted player")
         if self.side == "attacker":
-            return {"attacker": self.scripted_attacker}
-        return {"targeter": self.scripted_targeter, "defender": self.scripted_defender}
+            columns = {"attacker": self.scripted_attacker}
+        else:
+            columns = {"targeter": self.scripted_targeter, "defender": self.scripted_defender}
+        missing = [f"scripted_{agent}" for agent, name in columns.items() if name is None]
+        if missing:
+            raise ValueError(f"scripted player {self.id} has no {' nor '.join(missing)}")
+        return {agent: name for agent, name in columns.items() if name is not None}
 
     def modules(self) -> dict[str, str]:
         """Module id per agent for the agents of this player's side."""

@@ -66,6 +66,7 @@ class ProtocolSchedule:
         spec = self.league.phases[phase.index]
         if spec.env_steps is not None:
             return phase.env_steps >= spec.env_steps
+        assert spec.episodes is not None  # a phase has one budget (``ProtocolPhase._one_budget``)
         return phase.episodes >= spec.episodes
 
 

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-import ray
 import torch
 
 from envs.agents import Outcome
@@ -22,13 +21,6 @@ from league.state.store import LeagueStore
 
 ATTACKER = Player(id=1, side="attacker", kind="scripted", version=0, scripted_attacker="proportional_navigation")
 TEAM = Player(id=2, side="team", kind="scripted", version=0, scripted_targeter="straight", scripted_defender="bisector_intercept")
-
-
-@pytest.fixture(scope="module")
-def ray_instance():
-    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
-    yield
-    ray.shutdown()
 
 
 @pytest.mark.parametrize("games", ["dev", "test"])

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-import ray
 import torch
 from torch import nn
 
@@ -55,8 +54,7 @@ def build(sampler, team):
 
 
 @pytest.fixture(scope="module")
-def algos():
-    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
+def algos(ray_instance):
     built = {}
     for team in (TEAM, SCRIPTED_TEAM):
         standard, batched = build("standard", team), build("batched", team)
@@ -76,7 +74,6 @@ def algos():
     for pair in built.values():
         for algo in pair:
             algo.stop()
-    ray.shutdown()
 
 
 def finished_episodes(algo, calls, explore=False):

@@ -4,7 +4,6 @@ import contextlib
 import copy
 import numpy as np
 import pytest
-import ray
 import torch
 
 from league.config import RunConfig
@@ -82,14 +81,12 @@ SIDES = {ATTACKER.name: ATTACKER.side, TEAM.name: TEAM.side}
 
 
 @pytest.fixture(scope="module")
-def algo():
-    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
+def algo(ray_instance):
     # Half the games against the learning team, half against the scripted one: mixed matches.
     plan = MatchPlan([{"attacker": ATTACKER.name}], [[TEAM.modules(), SCRIPTED_TEAM.modules()]], [[1.0, 1.0]], seed=0)
     built = build_config(RUN, [ATTACKER, TEAM, SCRIPTED_TEAM], plan).build_algo()
     yield built
     built.stop()
-    ray.shutdown()
 
 
 def rows_by_step(columns):

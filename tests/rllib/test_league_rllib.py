@@ -3,7 +3,6 @@
 import math
 
 import pytest
-import ray
 
 from league.config import RunConfig
 from league.core.players import Player
@@ -20,8 +19,7 @@ def trained(result, module):
 
 
 @pytest.fixture(scope="module")
-def algo():
-    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
+def algo(ray_instance):
     run = RunConfig(
         name="wiring",
         ppo={"train_batch_size": 200, "minibatch_size": 100, "num_epochs": 1, "hidden": [16]},
@@ -39,7 +37,6 @@ def algo():
     algorithm = build_config(run, [*learners, scripted_attacker, scripted_team], plan).build_algo()
     yield algorithm
     algorithm.stop()
-    ray.shutdown()
 
 
 def test_one_shared_team_policy_plays_and_learns_for_both_t_and_d(algo):

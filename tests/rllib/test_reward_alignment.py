@@ -12,7 +12,6 @@ action.
 
 import numpy as np
 import pytest
-import ray
 import torch
 
 from envs.core import BatchedGame
@@ -58,13 +57,6 @@ class CoreLog:
             return result
 
         monkeypatch.setattr(BatchedGame, "step", step)
-
-
-@pytest.fixture(scope="module")
-def ray_instance():
-    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
-    yield
-    ray.shutdown()
 
 
 def build(sampler):

@@ -11,7 +11,6 @@ import sqlite3
 
 import numpy as np
 import pytest
-import ray
 import torch
 
 from league.analysis.nash import SUPPORT_THRESHOLD, meta_game, meta_game_players
@@ -39,9 +38,8 @@ evaluation: {episodes: 16, workers: 0, curve_every_env_steps: 0}
 
 
 @pytest.fixture(scope="module")
-def psro_run(tmp_path_factory):
+def psro_run(ray_instance, tmp_path_factory):
     """The finished run's store, its recorded plans ``(iteration, plan)`` and its directory."""
-    ray.init(address="local", num_cpus=2, include_dashboard=False)  # a private instance, whatever else runs
     torch.set_num_threads(1)
     base = tmp_path_factory.mktemp("psro")
     (base / "tiny.yaml").write_text(TINY)
@@ -55,17 +53,14 @@ def psro_run(tmp_path_factory):
         plans.append((holder["coordinator"].state.iteration + 1, plan))
         real_set_match_plan(algo, plan)
 
-    try:
-        with pytest.MonkeyPatch.context() as patch:
-            patch.setattr(bridge, "set_match_plan", recording)
-            store = LeagueStore(run_dir, create=True)
-            coordinator = holder["coordinator"] = Coordinator.start(run, run_dir, store)
-            coordinator.train(ProgressReporter(run_dir, 3, stream=io.StringIO()))
-            coordinator.algo.stop()
-        yield store, plans, run_dir
-        store.close()
-    finally:
-        ray.shutdown()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(bridge, "set_match_plan", recording)
+        store = LeagueStore(run_dir, create=True)
+        coordinator = holder["coordinator"] = Coordinator.start(run, run_dir, store)
+        coordinator.train(ProgressReporter(run_dir, 3, stream=io.StringIO()))
+        coordinator.algo.stop()
+    yield store, plans, run_dir
+    store.close()
 
 
 def test_a_learner_meets_the_other_sides_nash_mixture_of_the_frozen_players_then(psro_run):
