@@ -47,7 +47,7 @@ gives its length from the config alone.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Protocol, Sequence, TypeVar
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -88,21 +88,14 @@ def policy_input(observation: np.ndarray, state: np.ndarray) -> np.ndarray:
     return np.concatenate((observation, state), axis=-1)
 
 
-_Array = TypeVar("_Array", bound="_Sliceable")
-
-
-class _Sliceable(Protocol):
-    """A numpy array or a torch tensor: indexing gives the same kind (``envs`` does not import torch)."""
-
-    def __getitem__(self: _Array, index: Any, /) -> _Array: ...
-
-
-def split_policy_input(inputs: _Array, own_size: int) -> tuple[_Array, _Array]:
+# TorchScript compiles these two from the exported policies (league/evaluation/export.py) and knows no
+# TypeVar nor Protocol: their array argument stays unannotated, which TorchScript reads as a Tensor.
+def split_policy_input(inputs, own_size: int):  # type: ignore[no-untyped-def]
     """``(own observation, global state)`` of policy inputs: numpy arrays or torch tensors, any leading axes."""
     return inputs[..., :own_size], inputs[..., own_size:]
 
 
-def role_of(observation: _Array) -> _Array:
+def role_of(observation):  # type: ignore[no-untyped-def]
     """The role one-hot that ends T's and D's own observation (numpy or torch, any leading axes)."""
     return observation[..., -ROLE_SIZE:]
 
