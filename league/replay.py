@@ -65,11 +65,16 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     from envs.render import plot_episode
+    from league.evaluation.engine import MissingModuleError
     from league.evaluation.trajectories import replay_game
     from league.reports import html as report_html
 
     torch.set_num_threads(run.resources.threads_for(1))
-    episode, steps = replay_game(run, args.run_dir, attacker, team, args.game)
+    try:
+        episode, steps = replay_game(run, args.run_dir, attacker, team, args.game)
+    except MissingModuleError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     outcome, pairing = episode.outcome, episode.pairing
     out.parent.mkdir(parents=True, exist_ok=True)
     report_html.write_page(f"Replay: {pairing}", [

@@ -42,8 +42,6 @@ def build_report(run_dir: Path) -> Path:
 
     run = saved_run_config(run_dir)
     torch.set_num_threads(run.resources.threads_for(1))  # the games played here run torch in this process
-    out = run_dir / "report"
-    out.mkdir(exist_ok=True)
     store = LeagueStore(run_dir)
     try:
         attackers, teams = meta_game_players(store.players())
@@ -51,6 +49,8 @@ def build_report(run_dir: Path) -> Path:
         data = gather(store, run, report_trajectories(run, run_dir, store.players()))
     finally:
         store.close()
+    out = run_dir / "report"  # made once the games are played: a player that cannot play leaves no empty folder
+    out.mkdir(exist_ok=True)
     report = markdown.write_markdown(data, out)
     html.write(data, out / "index.html")
     return report
@@ -65,7 +65,13 @@ def main(argv: list[str] | None = None) -> int:
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    report = build_report(args.run_dir.resolve())
+    from league.evaluation.engine import MissingModuleError
+
+    try:
+        report = build_report(args.run_dir.resolve())
+    except MissingModuleError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     print(f"report written to {report} and {report.with_name('index.html')}")
     return 0
 

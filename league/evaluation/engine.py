@@ -59,6 +59,19 @@ class LearnedAgent:
         return actions.astype(np.float64)
 
 
+class MissingModuleError(Exception):
+    """A learned player's saved module is not where the league database says it is (deleted or moved).
+
+    Raised wherever a saved module is loaded for play (``saved_module``, ``EvaluationPool``);
+    the commands (``league.evaluate``, ``league.replay``, ``league.report``, ``league.export``)
+    print it as one line and exit 2.
+    """
+
+    def __init__(self, player: str, path: str | Path):
+        self.player, self.path = player, Path(path)
+        super().__init__(f"the saved module of player {player} is missing: {path} not found (deleted or moved?)")
+
+
 def load_module(path: str | Path) -> torch.nn.Module:
     """A saved player's RLModule, in eval mode (``league.rllib.bridge.load_module``)."""
     from league.rllib import bridge as rllib_bridge
@@ -70,7 +83,10 @@ def saved_module(player: Player, run_dir: Path, load=None) -> torch.nn.Module:
     """A learned league member's saved module (``load``: a stand-in for ``load_module``)."""
     if not player.checkpoint:
         raise ValueError(f"player {player.name} has no saved module to evaluate")
-    return (load or load_module)(run_dir / player.checkpoint)
+    try:
+        return (load or load_module)(run_dir / player.checkpoint)
+    except FileNotFoundError as err:
+        raise MissingModuleError(player.name, err.filename or run_dir / player.checkpoint) from err
 
 
 def policies_of(player: Player, run_dir: Path, load=None) -> dict[str, tuple[str, Policy]]:
@@ -224,9 +240,12 @@ class EvaluationPool:
         if player.kind == "scripted":
             return None
         path = self.run_dir / player.checkpoint
-        key = (str(path), (path / "module_state.pkl").stat().st_mtime)  # a learner saved anew is sent anew
+        try:
+            key = (str(path), (path / "module_state.pkl").stat().st_mtime)  # a learner saved anew is sent anew
+        except FileNotFoundError as err:
+            raise MissingModuleError(player.name, err.filename) from err
         if key not in self.sent:
-            self.sent[key] = ray.put(load_module(path))
+            self.sent[key] = ray.put(saved_module(player, self.run_dir))
         return self.sent[key]
 
     def evaluate(self, pairs: list[tuple[Player, Player]], episodes: int, games: str = "dev") -> list[PairEvaluation]:

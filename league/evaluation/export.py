@@ -69,13 +69,13 @@ def resolve_player(store: LeagueStore, spec: str) -> Player:
 
 def load_policy(run_dir: Path, player: Player) -> tuple[nn.Module, Any]:
     """The player's RLModule, with a clear error for a missing or unreadable checkpoint."""
-    from league.evaluation.engine import load_module
+    from league.evaluation.engine import MissingModuleError, saved_module
 
     path = run_dir / (player.checkpoint or "")
     try:
-        return load_module(path)
-    except FileNotFoundError as err:
-        raise ExportError(f"checkpoint of {player.name} missing: {err}") from err
+        return saved_module(player, run_dir)
+    except MissingModuleError as err:
+        raise ExportError(str(err)) from err
     except Exception as err:  # a truncated or foreign file: unpickling fails in many ways
         raise ExportError(f"checkpoint of {player.name} at {path} cannot be read: {type(err).__name__}: {err}") from err
 

@@ -13,6 +13,8 @@ the outcomes reach the driver through RLlib's metrics (``callbacks.OutcomeRecord
 
 from __future__ import annotations
 
+import errno
+
 import functools
 import logging
 import warnings
@@ -343,8 +345,11 @@ def load_module(path: str | Path) -> torch.nn.Module:
     """A module saved by ``save_module``, in eval mode."""
     from ray.rllib.core.rl_module.rl_module import RLModule
 
-    if not Path(path, "module_state.pkl").exists():
-        raise FileNotFoundError(f"no saved module at {path} (module_state.pkl missing)")
+    if not Path(path).is_dir():
+        raise FileNotFoundError(errno.ENOENT, f"no saved module at {path}", str(path))
+    for name in ("class_and_ctor_args.pkl", "module_state.pkl"):  # the files RLModule.from_checkpoint reads
+        if not Path(path, name).is_file():
+            raise FileNotFoundError(errno.ENOENT, f"no saved module at {path} ({name} missing)", str(Path(path, name)))
     module = RLModule.from_checkpoint(str(Path(path).resolve()))
     module.eval()
     return module
