@@ -6,6 +6,9 @@ A helper for commands, not a command: library code does not import it.
 from __future__ import annotations
 
 import argparse
+import sys
+import time
+from typing import IO
 
 import league
 
@@ -30,3 +33,23 @@ def command_parser(prog: str, description: str, **kwargs) -> argparse.ArgumentPa
     made = argparse.ArgumentParser(prog=prog, description=description, **kwargs)
     made.add_argument("--version", action="version", version=f"%(prog)s {league.__version__}")
     return made
+
+
+class PairProgress:
+    """A progress line on stderr as pairs are played: pairs done of all, time so far, time left at this pace.
+
+    Called after each pair (``league.evaluation.engine.Progress``); prints for the first pair,
+    the last, and at most one line every ``every_s`` seconds in between.
+    """
+
+    def __init__(self, what: str, every_s: float = 5.0, stream: IO[str] | None = None):
+        self.what, self.every_s, self.stream = what, every_s, stream or sys.stderr
+        self.start = self.last = time.monotonic()
+
+    def __call__(self, done: int, total: int) -> None:
+        now = time.monotonic()
+        if done not in (1, total) and now - self.last < self.every_s:
+            return
+        self.last, elapsed = now, now - self.start
+        left = f", about {elapsed / done * (total - done):.0f} s left" if done < total else ""
+        print(f"{self.what}: {done} of {total} pairs, {elapsed:.0f} s{left}", file=self.stream, flush=True)

@@ -31,7 +31,7 @@ from league.evaluation.results import last_iteration, record_evaluations
 from league.evaluation.tables import format_table, method_rows, method_table
 from league.analysis.nash import format_meta_game, meta_game, meta_game_players
 from league.analysis.statistics import wilson_interval
-from league.cli import command_parser, count
+from league.cli import PairProgress, command_parser, count
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
 
@@ -109,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         results = evaluate_pairs(
             run.game, args.run_dir.resolve(), pairs, episodes, workers, ev.cpus_per_worker,
             resources=ev.custom_resources_per_worker, torch_threads=run.resources.torch_threads, games=args.games,
+            progress=PairProgress(f"evaluating on {episodes} {args.games} games each"),
         )
     except MissingModuleError as err:
         print(f"error: {err}", file=sys.stderr)

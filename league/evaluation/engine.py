@@ -165,11 +165,20 @@ def evaluate_pair(
     return PairEvaluation(attacker, team, result)
 
 
+Progress = Callable[[int, int], None]  # (pairs done, pairs in all), called after each pair
+
+
 def evaluate_here(
-    game: GameConfig, run_dir: Path, pairs: list[tuple[Player, Player]], episodes: int, games: str = "dev"
+    game: GameConfig, run_dir: Path, pairs: list[tuple[Player, Player]], episodes: int, games: str = "dev",
+    progress: Progress | None = None,
 ) -> list[PairEvaluation]:
     """Every pair on the first ``episodes`` fixed ``games``, in this process."""
-    return [evaluate_pair(game, a, t, episodes, run_dir, games=games) for a, t in pairs]
+    results = []
+    for a, t in pairs:
+        results.append(evaluate_pair(game, a, t, episodes, run_dir, games=games))
+        if progress:
+            progress(len(results), len(pairs))
+    return results
 
 
 class EvaluationWorker:
@@ -248,11 +257,13 @@ class EvaluationPool:
             self.sent[key] = ray.put(saved_module(player, self.run_dir))
         return self.sent[key]
 
-    def evaluate(self, pairs: list[tuple[Player, Player]], episodes: int, games: str = "dev") -> list[PairEvaluation]:
+    def evaluate(
+        self, pairs: list[tuple[Player, Player]], episodes: int, games: str = "dev", progress: Progress | None = None
+    ) -> list[PairEvaluation]:
         import ray
 
         if not self.actors:
-            return evaluate_here(self.game, self.run_dir, pairs, episodes, games)
+            return evaluate_here(self.game, self.run_dir, pairs, episodes, games, progress)
         bounds = np.linspace(0, episodes, len(self.actors) + 1).astype(int)
         slices = [(int(lo), int(hi - lo)) for lo, hi in zip(bounds[:-1], bounds[1:]) if hi > lo]
         futures = [
@@ -275,6 +286,8 @@ class EvaluationPool:
                     self.log(f"replaying evaluation games {start}..{start + n - 1} of {a.name} vs {t.name} in the driver")
                     parts.append(evaluate_pair(self.game, a, t, n, self.run_dir, start, games=games).result)
             results.append(PairEvaluation(a, t, merge(parts)))
+            if progress:
+                progress(len(results), len(pairs))
         return results
 
     def close(self) -> None:
@@ -295,14 +308,16 @@ def evaluate_pairs(
     resources: dict[str, float] | None = None,
     torch_threads: int | None = None,
     games: str = "dev",
+    progress: Progress | None = None,
 ) -> list[PairEvaluation]:
-    """Every pair on the first ``episodes`` fixed ``games``: on ``pool``, on ``workers`` new actors, or here."""
+    """Every pair on the first ``episodes`` fixed ``games``: on ``pool``, on ``workers`` new actors, or here
+    (``progress``: told after each pair)."""
     if pool is not None:
-        return pool.evaluate(pairs, episodes, games)
+        return pool.evaluate(pairs, episodes, games, progress)
     if workers <= 0:
-        return evaluate_here(game, run_dir, pairs, episodes, games)
+        return evaluate_here(game, run_dir, pairs, episodes, games, progress)
     pool = EvaluationPool(game, run_dir, workers, cpus_per_worker, resources, torch_threads=torch_threads)
     try:
-        return pool.evaluate(pairs, episodes, games)
+        return pool.evaluate(pairs, episodes, games, progress)
     finally:
         pool.close()

@@ -93,3 +93,24 @@ def test_json_has_the_table_per_reward_method(run_copy, capsys):
             assert cell["attacker_win_rate"] == cell["attacker_wins"] / cell["games"]
     pool = methods[0]["columns"][-1]
     assert pool["against"] == "league pool" and pool["games"] == 4 * len(pool["teams"]) and pool["starts"] == 4
+
+
+def test_progress_goes_to_stderr_pair_by_pair_and_json_stays_clean(run_copy, capsys):
+    assert main(["--run-dir", str(run_copy), "--workers", "0", "--episodes", "2", "--json"]) == 0
+    captured = capsys.readouterr()
+    pairs = len(json.loads(captured.out)["pairs"])  # stdout is the JSON object alone
+    lines = captured.err.splitlines()
+    assert lines[0].startswith("evaluating on 2 dev games each: 1 of ") and "s left" in lines[0]
+    assert lines[-1].startswith(f"evaluating on 2 dev games each: {pairs} of {pairs} pairs, ")
+
+
+def test_progress_lines_are_spaced_in_time():
+    from io import StringIO
+
+    from league.cli import PairProgress
+
+    out = StringIO()
+    progress = PairProgress("x", every_s=3600, stream=out)
+    for done in range(1, 6):
+        progress(done, 5)
+    assert [line.split(",")[0] for line in out.getvalue().splitlines()] == ["x: 1 of 5 pairs", "x: 5 of 5 pairs"]
