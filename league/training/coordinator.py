@@ -519,7 +519,7 @@ class Coordinator:
             store.set_meta("evaluated_iteration", iteration)
         out = self.run_dir / EVALUATION_FILE
         write_replacing(out, evaluation_markdown(run, iteration, results))
-        progress.evaluation(results, iteration)
+        progress.evaluation(results, self.state.env_steps)
         progress.message(f"evaluation of {len(results)} pairs written to {out}")
         return out
 

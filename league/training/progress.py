@@ -101,9 +101,9 @@ class ProgressReporter:
             f"{side} win rate {phase_rate:.2f} over {phase.episodes} ep | league {league_size}"
             + (f" | snapshot {', '.join(snapshots)}" if snapshots else "")
         )
-        i = iteration
+        i = env_steps  # TensorBoard's x axis: env steps, which runs of other batch sizes share; not iterations
         self.scalar("perf/sps", steps_per_second, i)
-        self.scalar("perf/env_steps", env_steps, i)
+        self.scalar("perf/iteration", iteration, i)
         self.scalar("perf/sampling_seconds", timing.sampling, i)
         self.scalar("perf/learning_seconds", timing.learning, i)
         if evaluation:
@@ -120,10 +120,10 @@ class ProgressReporter:
         self.evaluation(evaluation, i)
         self.writer.flush()
 
-    def evaluation(self, results: list["PairEvaluation"], iteration: int) -> None:
-        """Attacker win rate of each evaluated pair, ``eval/ATTACKER_vs_TEAM``."""
+    def evaluation(self, results: list["PairEvaluation"], env_steps: int) -> None:
+        """Attacker win rate of each evaluated pair, ``eval/ATTACKER_vs_TEAM``, at ``env_steps`` of the run."""
         for r in results:
-            self.scalar(f"eval/{r.attacker.name}_vs_{r.team.name}", r.attacker_wins / r.games, iteration)
+            self.scalar(f"eval/{r.attacker.name}_vs_{r.team.name}", r.attacker_wins / r.games, env_steps)
 
     def scalar(self, tag: str, value: Any, step: int) -> None:
         """Write a scalar unless it is missing or not finite (an empty phase, an idle module)."""
