@@ -55,17 +55,25 @@ class TimeSplit:
         return ", ".join(f"{name} {seconds:.0f} s ({100 * seconds / max(total, 1e-9):.0f}%)" for name, seconds in parts)
 
 
+LOG_FILE = "run.log"  # in the run directory: the progress lines of every process that trained it
+
+
 class ProgressReporter:
     def __init__(self, run_dir: Path, total_phases: int, stream: IO[str] | None = None):
         self.stream = stream or sys.stderr
         self.console = Console(file=self.stream, log_path=False) if self.stream.isatty() else None
         self.writer = SummaryWriter(str(run_dir / "tensorboard"))
+        self.log = open(run_dir / LOG_FILE, "a")  # every line also here, a resume's after the run's before
         self.total_phases = total_phases
 
     def close(self) -> None:
         self.writer.close()
+        self.log.close()
 
     def message(self, text: str) -> None:
+        line = f"{time.strftime('%Y-%m-%d %H:%M:%S')} {text}"
+        self.log.write(line + "\n")
+        self.log.flush()
         if self.console is not None:
             self.console.log(text, markup=False, highlight=False)
         else:

@@ -32,3 +32,12 @@ def test_scalars_are_written_against_the_runs_env_steps(tmp_path):
     assert steps["perf/sps"] == [8192, 16384]
     assert steps["league/attacker_phase_win_rate"] == [8192, 16384]
     assert [value for tag, value, _ in recorder.scalars if tag == "perf/iteration"] == [1.0, 2.0]
+
+
+def test_every_progress_line_is_kept_in_the_run_directory_across_a_resume(tmp_path):
+    for text in ("run directory (new)", "run directory (resumed at iteration 7)"):
+        progress = ProgressReporter(tmp_path, 2, stream=io.StringIO())
+        progress.message(text)
+        progress.close()
+    lines = (tmp_path / "run.log").read_text().splitlines()
+    assert [line.split(" ", 2)[2] for line in lines] == ["run directory (new)", "run directory (resumed at iteration 7)"]
