@@ -32,7 +32,7 @@ import numpy as np
 
 from envs.scenarios import evaluation_scenarios
 from envs.start_classes import StartClass, classify, win_rates_by_class
-from league.analysis.nash import meta_game
+from league.analysis.nash import meta_game, weight_group
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
 from league.core.players import Player
 from league.evaluation.panel import add_scripted, every_scripted_player
@@ -216,8 +216,8 @@ def nash_rows(attackers: list[Player], teams: list[Player], table: dict) -> list
 
 
 def trained(player: Player) -> bool:
-    """A frozen player that training made (a learner's version 0 is the untrained network)."""
-    return player.kind != "scripted" and player.version > 0
+    """A frozen player that training made: not a scripted player nor a learner's untrained version 0."""
+    return weight_group(player) != "scripted_and_v0"
 
 
 def seed_verdict(gains: list[float]) -> tuple[float, str]:
