@@ -81,3 +81,15 @@ def test_an_installed_wheel_finds_a_config_by_name_and_runs(tmp_path):
     assert found == [f"{purelib}/league/__init__.py", f"{purelib}/league/configs/smoke.yaml"]
     helped = subprocess.run([venv / "bin" / "league-run", "--help"], cwd=outside, capture_output=True, text=True)
     assert helped.returncode == 0 and "--config" in helped.stdout, helped.stderr[-2000:]
+
+
+def test_constraints_pin_every_dependency_the_project_names():
+    pins = {}
+    for line in (ROOT / "constraints.txt").read_text().splitlines():
+        if line and not line.startswith("#"):
+            name, _, version = line.partition("==")
+            pins[re.sub(r"[-_.]+", "-", name).lower()] = version
+    named = PYPROJECT["project"]["dependencies"] + [d for extra in PYPROJECT["project"]["optional-dependencies"].values() for d in extra]
+    names = {re.sub(r"[-_.]+", "-", re.match(r"[A-Za-z0-9_.-]+", d).group()).lower() for d in named}
+    assert sorted(names - set(pins)) == []
+    assert pins["torch"] == "2.13.0"  # no local version: it matches the CPU build (2.13.0+cpu) and PyPI's
