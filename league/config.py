@@ -22,7 +22,10 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
 from envs.config import GameConfig
 from envs.scripted import PAPER_TEAM, PLAYERS
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
+# Run configs by name: inside the package when installed from a wheel (pyproject.toml ships
+# configs/ as league/configs), else beside it (a source checkout, an editable install).
+_PACKAGE_DIR = Path(__file__).resolve().parent
+CONFIG_DIR = _PACKAGE_DIR / "configs" if (_PACKAGE_DIR / "configs").is_dir() else _PACKAGE_DIR.parent / "configs"
 RUN_CONFIG_FILE = "config.yaml"  # the validated config a run keeps in its directory
 Side = Literal["attacker", "team"]
 

@@ -71,14 +71,6 @@ def test_the_sql_scan_finds_sql_outside_the_store(tmp_path):
     ]
 
 
-def test_the_package_version_is_pyprojects():
-    import tomllib
-
-    import league
-
-    assert league.__version__ == tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
-
-
 # ---------------------------------------------------------------- the import graph of league/
 def module_name(root: Path, path: Path) -> str:
     parts = path.relative_to(root).with_suffix("").parts

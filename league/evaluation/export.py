@@ -16,6 +16,7 @@ from typing import Any
 import torch
 from torch import nn
 
+import league
 from envs.observations import split_policy_input
 from envs.single import action_space, observation_space
 from league.core.players import POOL_KINDS, Player
@@ -104,7 +105,7 @@ def metadata(run: Any, player: Player, module: Any) -> dict[str, Any]:
             "output": "Gaussian mean; the env clips it into [low, high]",
         },
         "game": run.game.model_dump(),
-        "versions": {"torch": torch.__version__, "ray": ray.__version__, "package": "target-defense-league 0.1.0"},
+        "versions": {"torch": torch.__version__, "ray": ray.__version__, "package": f"target-defense-league {league.__version__}"},
         "hidden": list(module.settings.hidden),
     }
 

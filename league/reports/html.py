@@ -7,6 +7,7 @@ step through the game with the slider or the play button.
 
 from __future__ import annotations
 
+import math
 import html
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -46,6 +47,8 @@ if TYPE_CHECKING:
 # envs.render names matplotlib colours; the browser needs CSS ones.
 CSS = {"tab:red": "#d62728", "tab:blue": "#1f77b4", "tab:green": "#2ca02c"}
 AGENT_COLOURS = {agent: CSS.get(c, c) for agent, c in COLOURS.items()}
+PAYOFF_CELL_PX = 44  # the height of a row of the payoff heat map
+TEAM_LABEL_ANGLE = 35  # degrees the teams' names are turned under it
 PAGE_STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1200px; color: #222; }
 table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }
@@ -126,8 +129,13 @@ def payoff_figure(data: ReportData) -> go.Figure:
         colorscale="RdBu_r", text=text, texttemplate="%{text}", colorbar_title="attacker<br>win rate",
         hovertemplate="%{y} vs %{x}: %{z:.3f}<extra></extra>",
     ))
-    fig.update_layout(title="attacker win rate, newest evaluation of each pair", height=200 + 24 * len(data.attackers),
-                      yaxis_autorange="reversed")
+    # Sized from the matrix: rows of PAYOFF_CELL_PX, room below for the teams' names at TEAM_LABEL_ANGLE
+    # (about 7 px a character) and above for the title; square cells (``scaleanchor``) however wide the page.
+    rows, longest = len(data.attackers), max((len(t.name) for t in data.teams), default=0)
+    below = 40 + 7 * longest * math.sin(math.radians(TEAM_LABEL_ANGLE))
+    fig.update_layout(title="attacker win rate, newest evaluation of each pair", height=round(90 + PAYOFF_CELL_PX * rows + below),
+                      yaxis_autorange="reversed", yaxis_scaleanchor="x", yaxis_constrain="domain",
+                      xaxis_tickangle=-TEAM_LABEL_ANGLE, xaxis_constrain="domain")
     return fig
 
 
@@ -200,20 +208,32 @@ def curves_figure(data: ReportData) -> go.Figure:
     """The learning curves of ``curves.png``: a row per (learner, opponent), a panel per quantity,
     the scripted players and the untrained version 0 as dashed and dotted lines."""
     curves, terminal_reward = data.curves, data.run.game.terminal_reward
-    titles = [f"{c.learner.name} vs {c.opponent.name}: {q.title}" for c in curves for q in quantities(c.learner)]
-    fig = make_subplots(rows=len(curves), cols=2, subplot_titles=titles, vertical_spacing=0.3 / max(1, len(curves)))
+    # Titles on two lines, the opponent then the quantity (the learner is on the x axis), so that a
+    # long name stays over its own panel.
+    titles = [f"vs {c.opponent.name}<br>{q.title}" for c in curves for q in quantities(c.learner)]
+    fig = make_subplots(rows=len(curves), cols=2, subplot_titles=titles, vertical_spacing=0.35 / max(1, len(curves)))
+    fig.update_annotations(font_size=13)  # the subplot titles
+    in_legend: set[str] = set()
     for row, curve in enumerate(curves, start=1):
         for col, quantity in enumerate(quantities(curve.learner), start=1):
             y = [quantity.value(s, curve.learner, terminal_reward) for s in curve.stats]
             fig.add_trace(go.Scatter(x=curve.env_steps, y=y, mode="lines+markers", name=curve.learner.name,
                                      line={"color": "#1f77b4"}, showlegend=False), row=row, col=col)
+            # The reference lines are named in the legend (one entry each, toggling it in every panel)
+            # and on hover: labels at the lines overlapped wherever two references were close.
+            ends = [min(curve.env_steps), max(curve.env_steps)] if curve.env_steps else []
             for kind, name, stats in curve.references:
                 label = "untrained (version 0)" if kind == "untrained" else name
-                fig.add_hline(y=quantity.value(stats, curve.learner, terminal_reward), row=row, col=col,
-                              line={"color": reference_colour(kind, name), "dash": "dot" if kind == "untrained" else "dash",
-                                    "width": 1}, annotation_text=label, annotation_font_size=9)
+                value = quantity.value(stats, curve.learner, terminal_reward)
+                fig.add_trace(go.Scatter(
+                    x=ends, y=[value] * len(ends), mode="lines", name=label, legendgroup=label,
+                    showlegend=label not in in_legend, hovertemplate=f"{label}: %{{y:.3f}}<extra></extra>",
+                    line={"color": reference_colour(kind, name), "dash": "dot" if kind == "untrained" else "dash", "width": 1},
+                ), row=row, col=col)
+                in_legend.add(label)
             fig.update_xaxes(title_text=f"env steps of {curve.learner.name}", row=row, col=col)
-    fig.update_layout(height=320 * max(1, len(curves)), margin={"t": 40, "b": 40})
+    fig.update_layout(height=340 * max(1, len(curves)), margin={"t": 70, "b": 40},
+                      legend_title_text="reference lines (click to hide)")
     return fig
 
 

@@ -4,6 +4,7 @@ training, progress over generations, and learning curves (one run, or several ru
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,16 +24,32 @@ from league.reports.data import Phase, ReportData, Series, payoff_grid
 
 SIDE_COLOURS = {"attacker": "#d62728", "team": "#1f77b4"}  # phase shading and the sides' panels
 DPI = 110
+HEAT_MAP_CELL = 0.6  # inches a side of a payoff cell
+HEAT_MAP_TITLE = "attacker win rate, newest evaluation of each pair"
 
 
 # ---------------------------------------------------------------- league over training
 def heat_map(data: ReportData, out: Path) -> None:
+    fig = heat_map_figure(data)
+    fig.savefig(out, dpi=DPI, bbox_inches="tight", pad_inches=0.1)  # every label whole, however long
+    plt.close(fig)
+
+
+def heat_map_figure(data: ReportData):
     grid = payoff_grid(data)
     rows, columns = grid.shape
-    # Room for the labels, the colour bar and the title however few players there are.
-    fig, ax = plt.subplots(figsize=(max(6.5, 3.4 + 0.85 * columns), max(3.6, 2.2 + 0.35 * rows)), layout="constrained")
+    # Square cells, the figure sized from the matrix and its labels (8 pt: about 0.065 inch a
+    # character; the teams' labels turned by 35 degrees), so that no shape of league is squashed.
+    char = 0.065
+    below = 0.5 + char * max(map(len, (t.name for t in data.teams)), default=0) * math.sin(math.radians(35))
+    left = 0.3 + char * max(map(len, (a.name for a in data.attackers)), default=0)
+    # At least the width of the title (12 pt, about 0.1 inch a character), which is centred on the figure.
+    fig, ax = plt.subplots(
+        figsize=(max(0.1 * len(HEAT_MAP_TITLE), left + HEAT_MAP_CELL * columns + 1.3), 0.5 + HEAT_MAP_CELL * rows + below),
+        layout="constrained",
+    )
     cmap = plt.get_cmap("RdBu_r")  # red: the attacker wins, blue: the team wins, white: even
-    image = ax.imshow(grid, cmap=cmap, vmin=0, vmax=1, aspect="auto")
+    image = ax.imshow(grid, cmap=cmap, vmin=0, vmax=1, aspect="equal")
     ax.set_xticks(range(columns), [t.name for t in data.teams], rotation=35, ha="right", fontsize=8)
     ax.set_yticks(range(rows), [a.name for a in data.attackers], fontsize=8)
     for i in range(rows):
@@ -43,9 +60,8 @@ def heat_map(data: ReportData, out: Path) -> None:
                 ax.text(j, i, f"{grid[i, j]:.2f}", ha="center", va="center", fontsize=8,
                         color="white" if dark else "black")
     fig.colorbar(image, label="attacker win rate", fraction=0.05)
-    ax.set_title("attacker win rate, newest evaluation of each pair")
-    fig.savefig(out, dpi=DPI)
-    plt.close(fig)
+    fig.suptitle(HEAT_MAP_TITLE)
+    return fig
 
 
 def broken(x: list[int], y: list[float]) -> tuple[np.ndarray, np.ndarray]:

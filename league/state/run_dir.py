@@ -70,27 +70,59 @@ def open_store(run_dir: Path) -> LeagueStore:
         ) from err
 
 
+def unrecorded_players(run_dir: Path, store: LeagueStore) -> list[str]:
+    """Folders of ``players/`` that no player of ``store`` is saved in: weights saved after the
+    database's last commit that it does not know (a best response of ``league.exploit``, a snapshot)."""
+    players = store.players()
+    known = {p.name for p in players} | {Path(p.checkpoint).name for p in players if p.checkpoint}
+    saved = (d.name for d in (Path(run_dir) / "players").glob("*") if d.is_dir() and not d.name.endswith(".partial"))
+    return sorted(name for name in saved if name not in known)
+
+
 def restore_damaged_database(run_dir: Path) -> str | None:
     """Replace a damaged ``league.db`` by the newest intact copy kept in a checkpoint directory
-    (``Coordinator`` writes one with every checkpoint it commits). Returns the line saying so,
-    or None when the database was intact (or no intact copy exists: ``open_store`` then says what is wrong)."""
+    (``Coordinator`` writes one with every checkpoint it commits). Returns the lines saying so and
+    what the copy lacks (everything recorded after its checkpoint, the saved players it does not
+    know named), or None when the database was intact (or no intact copy exists: ``open_store``
+    then says what is wrong)."""
     path = Path(run_dir) / DB_NAME
     try:
         LeagueStore(run_dir).close()
         return None
     except DamagedStoreError as err:
         damage = err
+    skipped = []  # newer copies, damaged too
     for backup in sorted(Path(run_dir).glob(f"checkpoints/iter_*/{DB_NAME}"), reverse=True):
         try:
             LeagueStore(backup.parent).close()
         except (DamagedStoreError, OSError):
+            skipped.append(str(backup.relative_to(run_dir)))
             continue
         for stale in (path.with_name(DB_NAME + "-wal"), path.with_name(DB_NAME + "-shm")):
             stale.unlink(missing_ok=True)
         partial = path.with_name(DB_NAME + ".restoring")
         shutil.copyfile(backup, partial)
         os.replace(partial, path)
-        return f"{damage}; restored it from {backup.relative_to(run_dir)}, the copy kept with that checkpoint"
+        restored = LeagueStore(run_dir)
+        try:
+            checkpoint, unknown = restored.last_checkpoint(), unrecorded_players(run_dir, restored)
+        finally:
+            restored.close()
+        iteration = checkpoint[0] if checkpoint else 0
+        newer = f" (the newer {', '.join(skipped)} {'is' if len(skipped) == 1 else 'are'} damaged too)" if skipped else ""
+        lines = [
+            f"{damage}; restored it from {backup.relative_to(run_dir)}, the copy kept with that checkpoint{newer}",
+            f"warning: everything recorded after the checkpoint of iteration {iteration} is lost from league.db: "
+            "this resume redoes the run's own training and evaluations, not the evaluations (league.evaluate) "
+            "and best responses (league.exploit) recorded since: run them again",
+        ]
+        if unknown:
+            lines.append(
+                f"warning: {len(unknown)} saved player(s) the restored league.db does not know, saved after that "
+                f"checkpoint: {', '.join('players/' + name for name in unknown)} (snapshots are saved again as "
+                "training redoes them; a best response stays unused until league.exploit records a new one there)"
+            )
+        return "\n".join(lines)
     return None
 
 

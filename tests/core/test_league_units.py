@@ -69,6 +69,16 @@ def test_every_shipped_config_is_valid():
         assert load_config(name).name == name
 
 
+def test_the_cluster_config_is_the_smoke_league_placed_on_nodes():
+    from league.config import changed_keys
+
+    smoke, cluster = (load_config(name).model_dump(mode="json") for name in ("smoke", "cluster"))
+    placement = ("name", "resources.", "evaluation.workers", "evaluation.cpus_per_worker", "evaluation.custom_resources")
+    assert [key for key in changed_keys(smoke, cluster) if not key.startswith(placement)] == []
+    assert cluster["resources"]["custom_resources_per_env_runner"] == {"sampler": 1}
+    assert cluster["evaluation"]["custom_resources_per_worker"] == {"evaluator": 1}
+
+
 def test_set_overrides_and_bad_yaml(tmp_path):
     config = load_config("smoke", ["ppo.lr=0.001", "game.attacker_reward=3"])
     assert config.ppo.lr == 0.001 and config.game.attacker_reward == 3

@@ -4,6 +4,7 @@ import html
 import re
 import sqlite3
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from PIL import Image
@@ -162,10 +163,67 @@ def test_status_of_a_finished_run_says_finished_with_its_average_speed(tiny_run)
     assert line.endswith(f"{last['env_steps'] / seconds:.0f} env steps/s on average")
 
 
-def test_the_payoff_heat_map_has_room_for_its_colour_bar_and_title(report_dir):
-    # It was 580 x 260 px for a small league, the colour bar's label running into the title.
-    width, height = Image.open(report_dir / "payoff.png").size
-    assert width >= 6.5 * 100 * 0.99 and height >= 3.6 * 100 * 0.99, (width, height)
+def payoff_data(monkeypatch, rows: int, columns: int):
+    """A league of ``rows`` attackers and ``columns`` teams, long scripted names among them."""
+    from types import SimpleNamespace
+
+    from league.reports import html as report_html, plots
+
+    grid = np.linspace(0, 1, rows * columns).reshape(rows, columns)
+    for module in (plots, report_html):
+        monkeypatch.setattr(module, "payoff_grid", lambda data: grid)
+    named = lambda names: [SimpleNamespace(name=name) for name in names]  # noqa: E731
+    attackers = named(["scripted-proportional_navigation", *(f"attacker-m2-v{i}" for i in range(rows - 1))])
+    teams = named(["scripted-avoid_oncoming_attacker+bisector_intercept", *(f"team-v{i}" for i in range(columns - 1))])
+    return SimpleNamespace(attackers=attackers, teams=teams)
+
+
+@pytest.mark.parametrize("rows, columns", [(3, 12), (12, 2), (6, 8), (1, 1)])
+def test_the_payoff_heat_map_png_has_square_cells_and_its_title_clear(monkeypatch, rows, columns):
+    # The flagship's (6 attackers, 8 teams) was a strip: cells 2.5 times wider than high.
+    from league.reports.plots import heat_map_figure
+
+    fig = heat_map_figure(payoff_data(monkeypatch, rows, columns))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    ax, colour_bar = fig.axes
+    box = ax.get_window_extent(renderer)
+    cell_width, cell_height = box.width / columns, box.height / rows
+    assert 0.95 <= cell_width / cell_height <= 1.05 and cell_height >= 0.5 * fig.dpi, (cell_width, cell_height)
+    title = fig._suptitle.get_window_extent(renderer)
+    assert not title.overlaps(colour_bar.get_window_extent(renderer)) and not title.overlaps(box)
+    plt.close(fig)
+
+
+def test_the_payoff_heat_map_page_has_square_cells_and_room_for_the_names(monkeypatch):
+    from league.reports.html import payoff_figure
+
+    data = payoff_data(monkeypatch, 3, 12)
+    layout = payoff_figure(data).layout
+    assert layout.yaxis.scaleanchor == "x"  # square cells, however wide the page
+    # The teams' names, turned by the tick angle, at about 6 px a character, 40 px a row, a title.
+    names = max(len(t.name) for t in data.teams) * 6 * np.sin(np.radians(abs(layout.xaxis.tickangle)))
+    assert layout.height >= 80 + 40 * 3 + names, layout.height
+
+
+def test_the_learning_curves_page_names_reference_lines_in_the_legend_not_over_each_other(tiny_run):
+    from league.config import saved_run_config
+    from league.reports.data import gather
+    from league.reports.html import curves_figure
+
+    store = LeagueStore(tiny_run)
+    try:
+        data = gather(store, saved_run_config(tiny_run))
+    finally:
+        store.close()
+    fig = curves_figure(data)
+    references = {(kind, name) for curve in data.curves for kind, name, _ in curve.references}
+    assert references
+    # Only the panels' titles are written on the figure: the reference lines are legend entries, once each.
+    assert fig.layout.annotations and all(a.text.startswith("vs ") and "<br>" in a.text for a in fig.layout.annotations)
+    legend = [t.name for t in fig.data if t.showlegend is not False]
+    expected = {"untrained (version 0)" if kind == "untrained" else name for kind, name in references}
+    assert sorted(legend) == sorted(expected)
 
 
 def test_the_report_page_has_the_learning_curves_of_report_md(tiny_run, report_dir):
@@ -178,7 +236,8 @@ def test_the_report_page_has_the_learning_curves_of_report_md(tiny_run, report_d
     page = (report_dir / "index.html").read_text()
     assert 'id="learning-curves"' in page
     for curve in curves:
-        assert f"{curve.learner.name} vs {curve.opponent.name}: win rate" in page
+        assert f"vs {curve.opponent.name}\\u003cbr\\u003ewin rate" in page or f"vs {curve.opponent.name}<br>win rate" in page
+        assert f"env steps of {curve.learner.name}" in page
     assert "learning curves" in (report_dir / "report.md").read_text().lower()
 
 

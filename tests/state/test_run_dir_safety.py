@@ -556,3 +556,22 @@ def test_a_run_made_before_a_key_existed_resumes_with_its_default_and_not_with_a
     assert config_hash(with_bf16) != config_hash(run_config)
     with pytest.raises(RunDirError, match=r"was changed after the run started \(ppo.bf16\)"):
         check_config_unchanged(run_copy, with_bf16, store)
+
+
+def test_a_restored_database_says_what_it_lost_and_names_the_weights_it_does_not_know(run_copy):
+    from league.state.run_dir import restore_damaged_database
+
+    store = LeagueStore(run_copy)
+    [newest, *_] = sorted(store.checkpoints(), reverse=True)
+    known = sorted(p.name for p in store.players() if (run_copy / "players" / p.name).is_dir())  # kept unnamed
+    store.close()
+    # What league.exploit leaves after the newest checkpoint: a best response's weights (its row is in
+    # the database that is damaged below, not in the checkpoint's copy).
+    shutil.copytree(run_copy / "players" / known[0], run_copy / "players" / "attacker-m2-br0")
+    truncate(run_copy / "league.db")
+    said = restore_damaged_database(run_copy).splitlines()
+    assert said[0].endswith(f"restored it from {newest[1]}/league.db, the copy kept with that checkpoint")
+    assert said[1].startswith(f"warning: everything recorded after the checkpoint of iteration {newest[0]} is lost")
+    assert "league.exploit" in said[1]
+    assert said[2].startswith("warning: 1 saved player(s) the restored league.db does not know")
+    assert said[2].split("checkpoint: ")[1].split(" (")[0].split(", ") == ["players/attacker-m2-br0"]
