@@ -221,6 +221,16 @@ def test_an_exported_mixture_draws_the_evaluations_members_without_ray(mixed_run
     assert np.abs(found["action"] - actions[expected, np.arange(len(obs))]).max() < 1e-5
 
 
+def test_an_exported_team_mixture_draws_the_teams_members(mixed_run, tmp_path):
+    # The team side's draw is a stream of its own (the attackers' is stream 0): the export must use it too.
+    out = tmp_path / "team.pt"
+    assert export.main(["--run-dir", str(mixed_run), "--player", "nash-team", "--format", "torchscript", "--out", str(out)]) == 0
+    teams = mixture(mixed_run, "nash-team")
+    games = torch.arange(300)
+    members = torch.jit.load(str(out)).member(torch.full((300,), 7), games).numpy()
+    np.testing.assert_array_equal(members, teams.draw(7, games.numpy()))
+
+
 def test_export_refuses_scripted_members_and_bad_names(tiny_run, mixed_run, tmp_path, capsys):
     out = tmp_path / "team.pt"
     # The tiny run's team mixture is its scripted team alone.
