@@ -103,7 +103,7 @@ def draw_keys(seed: int, stream: int, games: npt.ArrayLike) -> IntArray:
     games = np.asarray(games, dtype=np.int64)
     if seed < 0 or (games < 0).any():
         raise ValueError("mixture seeds and game indices are integers from 0")
-    return mix(mix(mix(np.int64(seed)) + stream) + games)
+    return mix(mix(mix(np.asarray(seed, dtype=np.int64)) + stream) + games)
 
 
 def boundaries(weights: list[float] | tuple[float, ...]) -> IntArray:

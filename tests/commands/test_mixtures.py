@@ -231,6 +231,18 @@ def test_an_exported_team_mixture_draws_the_teams_members(mixed_run, tmp_path):
     np.testing.assert_array_equal(members, teams.draw(7, games.numpy()))
 
 
+def test_the_docs_mixture_example_runs(mixed_run, tmp_path):
+    """The mixture export example of docs/evaluation.md, as written, with the team mixture of a run."""
+    from pathlib import Path
+
+    out = tmp_path / "team.pt"
+    assert export.main(["--run-dir", str(mixed_run), "--player", "nash-team", "--format", "torchscript", "--out", str(out)]) == 0
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "evaluation.md").read_text()
+    block = docs.split("<!-- mixture-export-example -->", 1)[1].split("```python", 1)[1].split("```", 1)[0]
+    proc = subprocess.run([sys.executable, "-c", block], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+
+
 def test_export_refuses_scripted_members_and_bad_names(tiny_run, mixed_run, tmp_path, capsys):
     out = tmp_path / "team.pt"
     # The tiny run's team mixture is its scripted team alone.
