@@ -28,6 +28,20 @@ def count(minimum: int):
     return parse
 
 
+def mixture_seed(text: str) -> int:
+    """An argparse type: a mixture player's seed (``league.core.mixture.SEED_RANGE``)."""
+    from league.core.mixture import SEED_RANGE
+
+    value = count(SEED_RANGE[0])(text)
+    if value > SEED_RANGE[1]:
+        raise argparse.ArgumentTypeError(f"must be at most {SEED_RANGE[1]}, got {value}")
+    return value
+
+
+MIXTURE_SEED_HELP = ("the seed from which a mixture player (nash-attacker, nash-team, @ITERATION) draws its member of "
+                     "each game, with the game's index (default 0)")
+
+
 def command_parser(prog: str, description: str, **kwargs) -> argparse.ArgumentParser:
     """A command's parser, with ``--version`` (the package's version)."""
     made = argparse.ArgumentParser(prog=prog, description=description, **kwargs)

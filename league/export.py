@@ -16,6 +16,13 @@ Formats: ``export`` writes a ``torch.export`` ``ExportedProgram`` (``.pt2``, loa
 
 The metadata travels inside the file (``.pt2`` and TorchScript extra file ``metadata.json``;
 ONNX ``metadata_props``): observation and action layout, game parameters, player, versions.
+
+``--player nash-attacker`` or ``nash-team`` (``@ITERATION`` for that iteration's meta-game)
+exports the side's Nash mixture as one module of every member (``ExportedMixture``):
+``forward(observation, seed, game)`` returns ``(action, member)``, the action of the member
+drawn for the row's ``(seed, game)``, the same member ``league.evaluate --mixture-seed`` draws
+for that fixed game. A mixture with a scripted member is refused (exit 2), naming it: scripted
+players act on the game's exact state, not on the observation.
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ from league.evaluation.export import FORMATS, ExportError, build, export
 def main(argv: list[str] | None = None) -> int:
     parser = command_parser(prog="python -m league.export", description=__doc__.splitlines()[0])
     parser.add_argument("--run-dir", type=Path, required=True)
-    parser.add_argument("--player", required=True, help="player id or name, latest-attacker or latest-team")
+    parser.add_argument("--player", required=True, help="player id or name, latest-attacker or latest-team, or a mixture nash-attacker, nash-team[@ITERATION]")
     parser.add_argument("--format", choices=FORMATS, default="torchscript")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args(argv)

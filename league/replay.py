@@ -7,6 +7,10 @@ between any attacker and any team of the league, scripted or trained,
 and writes it as an interactive 3D page (the report's trajectory scene: rotate, zoom, step
 through) and as a PNG beside it (``envs.render``). By default both go into the run directory,
 named after the pair: ``replay-ATTACKER-vs-TEAM-gameK.html`` and ``.png``.
+
+A side may be a mixture player (``nash-attacker``, ``nash-team``, ``@ITERATION``): game ``K`` is
+played by the member drawn for it from ``--mixture-seed`` (the one ``league.evaluate`` with that
+seed plays on game ``K``), and the page and the printed line name it.
 """
 
 from __future__ import annotations
@@ -15,7 +19,9 @@ import html
 import sys
 from pathlib import Path
 
-from league.cli import command_parser, count
+from league.analysis.mixtures import find_mixture
+from league.cli import MIXTURE_SEED_HELP, command_parser, count, mixture_seed
+from league.core.mixture import Mixture, MixtureError
 from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
 
@@ -44,20 +50,31 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--team", required=True, help="a team of the league")
     parser.add_argument("--game", type=count(0), default=0, help="which fixed evaluation game, 0 to the run's evaluation.episodes - 1 (default 0)")
     parser.add_argument("--out", type=Path, help="the HTML page to write (the PNG goes beside it, .png)")
+    parser.add_argument("--mixture-seed", type=mixture_seed, default=0, help=MIXTURE_SEED_HELP)
     args = parser.parse_args(argv)
     try:
         run, store = open_run(args.run_dir)
         try:
             players = store.players()
+            mixtures = {side: find_mixture(store, name, side) for side, name in (("attacker", args.attacker), ("team", args.team))}
         finally:
             store.close()
         check_game(args.game, run.evaluation.episodes)
-        attacker = find_player(players, args.attacker, "attacker")
-        team = find_player(players, args.team, "team")
-    except (RunDirError, ValueError) as err:
+        attacker = find_player(players, args.attacker, "attacker") if mixtures["attacker"] is None else None
+        team = find_player(players, args.team, "team") if mixtures["team"] is None else None
+    except (RunDirError, MixtureError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    out = args.out or args.run_dir / f"replay-{attacker.name}-vs-{team.name}-game{args.game}.html"
+    drawn = []  # "MIXTURE drew MEMBER (weight W)" of each mixture side
+    for side, mixture in mixtures.items():
+        if mixture is not None:
+            member = mixture.member_of(args.mixture_seed, args.game)
+            drawn.append(f"{mixture.name} drew {member.name} (weight {mixture.weights[mixture.members.index(member)]:.3f}, "
+                         f"--mixture-seed {args.mixture_seed})")
+            attacker, team = (member, team) if side == "attacker" else (attacker, member)
+    assert attacker is not None and team is not None
+    names = [m.name if m is not None else p.name for m, p in ((mixtures["attacker"], attacker), (mixtures["team"], team))]
+    out = args.out or args.run_dir / f"replay-{names[0]}-vs-{names[1]}-game{args.game}.html"
     if out.is_dir():
         print(f"error: --out {out} is a directory; give a file name, e.g. {out / 'replay.html'}", file=sys.stderr)
         return 2
@@ -81,10 +98,13 @@ def main(argv: list[str] | None = None) -> int:
         f"<h1>{html.escape(pairing)}</h1>",
         f"<p>{html.escape(outcome.label)} after {steps} steps; fixed evaluation game {args.game} of scenario set "
         f"<code>{html.escape(run.game.scenario)}</code>, deterministic actions.</p>",
+        *(f"<p>{html.escape(line)}</p>" for line in drawn),
         report_html.figure_div(report_html.trajectory_figure(episode, run.game), "replay"),
     ], out)
     png = out.with_suffix(".png")
     plot_episode(episode.path, outcome, run.game, pairing, png)
+    for line in drawn:
+        print(line)
     print(f"{pairing}: {outcome.label} after {steps} steps; wrote {out} and {png}")
     return 0
 

@@ -7,14 +7,18 @@ players acting on the games' exact state. Every pair plays the same fixed seeded
 (``envs.scenarios.evaluation_scenarios``: the ``dev`` games, or the held-out ``test`` games
 that only final tables and studies play), each once, to its end.
 
+A side may be a mixture player (``league.core.mixture``): each game is played by the member its
+draw picks for that game's index (``mixture_seed``), all of them in one batch; so the same seed
+plays the same members on the same games whatever the slices.
+
 ``evaluate_pairs`` runs in this process, or spreads the pairs over ``EvaluationWorker``
 Ray actors (on any node of the cluster) in slices of the same fixed games; both give the
-same numbers.
+same numbers (pairs with a mixture are played in this process).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -29,6 +33,7 @@ from envs.observations import policy_input
 from envs.scenarios import evaluation_scenarios
 from envs.scripted import ScriptedPlayer
 from envs.vector_env import TargetDefenseVectorEnv
+from league.core.mixture import Contestant, Mixture
 from league.core.payoff import OutcomeCount
 from league.core.players import Player
 from league.rollout.games import ModuleAct, Policy, Rollout, ScriptedOnState
@@ -101,14 +106,22 @@ def policies_of(player: Player, run_dir: Path, load=None) -> dict[str, tuple[str
     return {agent: (module_id, act) for agent, module_id in modules.items()}
 
 
-def play_fixed_games(game: GameConfig, positions: np.ndarray, policies: dict[str, tuple[str, Policy]]) -> GameResults:
+Lineup = dict[str, tuple[str, Policy]]
+"""Module id and policy of every agent of a game."""
+
+
+def play_fixed_games(game: GameConfig, positions: np.ndarray, policies: Lineup | list[Lineup]) -> GameResults:
     """One game from each start of ``positions`` ``(N, 3, 3)``, played to its end; ``policies``:
-    module id and policy of every agent."""
-    module_of = {agent: module_id for agent, (module_id, _) in policies.items()}
-    policy_of = {module_id: policy for module_id, policy in policies.values()}
-    observed = tuple(agent for agent, (_, policy) in policies.items() if not isinstance(policy, ScriptedOnState))
+    module id and policy of every agent, for every game or (a list) for each game."""
+    lineups = policies if isinstance(policies, list) else [policies] * len(positions)
+    module_of = [{agent: module_id for agent, (module_id, _) in lineup.items()} for lineup in lineups]
+    policy_of = {module_id: policy for lineup in lineups for module_id, policy in lineup.values()}
+    observed = tuple(agent for agent in AGENTS
+                     if any(not isinstance(lineup[agent][1], ScriptedOnState) for lineup in lineups))
     games = TargetDefenseVectorEnv({**game.model_dump(), "with_global_state": True}, len(positions))
-    rollout = Rollout(games, lambda agent, episode_id: module_of[agent], action_dtype=np.float64)
+    numbers = iter(range(len(positions)))  # the episodes are named by their game's place, in start order
+    rollout = Rollout(games, lambda agent, episode_id: module_of[int(episode_id)][agent], action_dtype=np.float64,
+                      new_episode_id=lambda: str(next(numbers)))
     rollout.reset(seed=None, positions=positions)
     attacker_returns = np.zeros((len(positions), 3))
     while games.core.active.any():
@@ -137,11 +150,23 @@ def agents_of(player: Player, run_dir: Path, load=None) -> dict[str, Controller]
     return {agent: LearnedAgent(module, agent) for agent in agents}
 
 
+def lineups_of(contestant: Contestant, run_dir: Path, games: np.ndarray, seed: int, load=None) -> tuple[list[Lineup], list[str]]:
+    """Module id and policy of each agent of ``contestant``'s side, and the player that plays, for each fixed game
+    of ``games`` (indices): a mixture's member drawn for the game, else the player itself."""
+    if not isinstance(contestant, Mixture):
+        return [policies_of(contestant, run_dir, load)] * len(games), [contestant.name] * len(games)
+    drawn = contestant.draw(seed, games)
+    loaded = {k: policies_of(contestant.members[k], run_dir, load) for k in np.unique(drawn)}
+    return [loaded[k] for k in drawn], [contestant.members[k].name for k in drawn]
+
+
 @dataclass
 class PairEvaluation:
-    attacker: Player
-    team: Player
+    attacker: Contestant
+    team: Contestant
     result: GameResults
+    # a mixture side's member in each game, by side ("attacker", "team"); empty for a pair of players
+    members: dict[str, list[str]] = field(default_factory=dict)
 
     @property
     def games(self) -> int:
@@ -151,31 +176,44 @@ class PairEvaluation:
     def attacker_wins(self) -> int:
         return int(self.result.attacker_wins.sum())
 
+    @property
+    def has_mixture(self) -> bool:
+        return isinstance(self.attacker, Mixture) or isinstance(self.team, Mixture)
+
     def outcome_rows(self) -> list[OutcomeCount]:
+        """The store's rows of a pair of players (a mixture has no row in the league)."""
+        if self.has_mixture:
+            raise ValueError(f"{self.attacker.name} vs {self.team.name}: a mixture's games are not league results")
         return [OutcomeCount(self.attacker.id, self.team.id, label, n) for label, n in self.result.outcome_counts().items() if n]
 
 
 def evaluate_pair(
-    game: GameConfig, attacker: Player, team: Player, episodes: int, run_dir: Path, start: int = 0, load=None,
-    games: str = "dev",
+    game: GameConfig, attacker: Contestant, team: Contestant, episodes: int, run_dir: Path, start: int = 0, load=None,
+    games: str = "dev", mixture_seed: int = 0,
 ) -> PairEvaluation:
-    """Games ``start .. start + episodes`` of the fixed ``games`` (``dev`` or ``test``), ``attacker`` vs ``team``."""
-    policies = {**policies_of(attacker, run_dir, load), **policies_of(team, run_dir, load)}
+    """Games ``start .. start + episodes`` of the fixed ``games`` (``dev`` or ``test``), ``attacker`` vs ``team``
+    (a mixture draws its member of each game from ``mixture_seed`` and the game's index)."""
+    indices = np.arange(start, start + episodes)
+    (attackers, attacker_members), (teams, team_members) = (
+        lineups_of(side, run_dir, indices, mixture_seed, load) for side in (attacker, team))
+    policies = [{**a, **t} for a, t in zip(attackers, teams)]
     result = play_fixed_games(game, evaluation_scenarios(game.scenario, start + episodes, games)[start:], policies)
-    return PairEvaluation(attacker, team, result)
+    members = {side.side: drawn for side, drawn in ((attacker, attacker_members), (team, team_members))
+               if isinstance(side, Mixture)}
+    return PairEvaluation(attacker, team, result, members)
 
 
 Progress = Callable[[int, int], None]  # (pairs done, pairs in all), called after each pair
 
 
 def evaluate_here(
-    game: GameConfig, run_dir: Path, pairs: list[tuple[Player, Player]], episodes: int, games: str = "dev",
-    progress: Progress | None = None,
+    game: GameConfig, run_dir: Path, pairs: list[tuple[Contestant, Contestant]], episodes: int, games: str = "dev",
+    progress: Progress | None = None, mixture_seed: int = 0,
 ) -> list[PairEvaluation]:
     """Every pair on the first ``episodes`` fixed ``games``, in this process."""
     results = []
     for a, t in pairs:
-        results.append(evaluate_pair(game, a, t, episodes, run_dir, games=games))
+        results.append(evaluate_pair(game, a, t, episodes, run_dir, games=games, mixture_seed=mixture_seed))
         if progress:
             progress(len(results), len(pairs))
     return results
@@ -300,7 +338,7 @@ class EvaluationPool:
 def evaluate_pairs(
     game: GameConfig,
     run_dir: Path,
-    pairs: list[tuple[Player, Player]],
+    pairs: list[tuple[Contestant, Contestant]],
     episodes: int,
     workers: int = 0,
     cpus_per_worker: float = 0.5,
@@ -309,9 +347,21 @@ def evaluate_pairs(
     torch_threads: int | None = None,
     games: str = "dev",
     progress: Progress | None = None,
+    mixture_seed: int = 0,
 ) -> list[PairEvaluation]:
     """Every pair on the first ``episodes`` fixed ``games``: on ``pool``, on ``workers`` new actors, or here
-    (``progress``: told after each pair)."""
+    (``progress``: told after each pair). Pairs with a mixture (its members drawn from ``mixture_seed``) are
+    played here, after the others, and put back in their places."""
+    mixed = [k for k, (a, t) in enumerate(pairs) if isinstance(a, Mixture) or isinstance(t, Mixture)]
+    if mixed:
+        plain = [pair for k, pair in enumerate(pairs) if k not in mixed]
+        done = evaluate_pairs(game, run_dir, plain, episodes, workers, cpus_per_worker, pool, resources, torch_threads,
+                              games) if plain else []
+        here = evaluate_here(game, run_dir, [pairs[k] for k in mixed], episodes, games, mixture_seed=mixture_seed)
+        by_place = dict(zip(mixed, here)) | dict(zip([k for k in range(len(pairs)) if k not in mixed], done))
+        if progress:
+            progress(len(pairs), len(pairs))
+        return [by_place[k] for k in range(len(pairs))]
     if pool is not None:
         return pool.evaluate(pairs, episodes, games, progress)
     if workers <= 0:

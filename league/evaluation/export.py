@@ -1,6 +1,12 @@
 """A league player's policy as a standalone torch module, as the evaluation engine plays it (the
 Gaussian's mean), written as torch.export, TorchScript or ONNX (``python -m league.export``).
 
+A mixture player (``nash-attacker``, ``nash-team``, ``@ITERATION``; ``league.core.mixture``) is
+one module holding every member's policy, ``ExportedMixture``: it draws each game's member from
+``(seed, game)`` by the same integer arithmetic as evaluation, so a seed gives the same members
+here as in ``league.evaluate --mixture-seed``. Scripted members act on the game's exact state,
+not on an observation: a mixture with one is refused, naming it.
+
 The metadata travels inside the file (``.pt2`` and TorchScript extra file ``metadata.json``;
 ONNX ``metadata_props``): observation and action layout, game parameters, player, versions.
 """
@@ -19,6 +25,9 @@ from torch import nn
 import league
 from envs.observations import split_policy_input
 from envs.single import action_space, observation_space
+from league.core.mixture import (
+    MIX_INCREMENT, MIX_KEYS, MIX_MULTIPLIER, MODULUS, Mixture, MixtureError, boundaries, is_mixture_name,
+)
 from league.core.players import POOL_KINDS, Player
 from league.state.run_dir import RunDirError, open_run
 from league.state.store import LeagueStore
@@ -48,6 +57,49 @@ class ExportedPolicy(nn.Module):
                 "got shape {}".format(self.observation_size, [int(n) for n in observation.shape])
             )
         return self.actor(split_policy_input(observation, self.observation_size)[0])
+
+
+class ExportedMixture(nn.Module):
+    """A mixture player: every member's policy, one drawn per game.
+
+    ``forward(observation, seed, game)``: ``observation`` a float32 batch ``(B, size)`` as for one
+    player; ``seed`` and ``game`` int64 ``(B,)``, each row's seed (0 to 2**31 - 2) and game number
+    (from 0). Returns ``(action (B, 2), member (B,))``: the action of the member drawn for the row's
+    ``(seed, game)`` (``member``: its index in the metadata's ``mixture.members``). Give every row of
+    one game (the team's targeter and defender, every step) the same seed and game number: the game
+    is played by one member. The draw is ``league.core.mixture``'s, so seed ``s`` and game ``k`` draw
+    the member that plays fixed game ``k`` in ``league.evaluate --mixture-seed s``.
+    """
+
+    def __init__(self, members: list[ExportedPolicy], bounds: torch.Tensor, stream: int):
+        super().__init__()
+        self.members = nn.ModuleList(members)
+        self.register_buffer("boundaries", bounds)
+        self.stream = stream
+        # league.core.mixture's constants as attributes: TorchScript reads no global variables
+        self.modulus, self.keys, self.increment, self.multiplier = MODULUS, list(MIX_KEYS), MIX_INCREMENT, MIX_MULTIPLIER
+
+    def mix(self, x: torch.Tensor) -> torch.Tensor:
+        """``league.core.mixture.mix`` on int64 tensors (TorchScript compiles it, so it cannot be NumPy's)."""
+        x = torch.remainder(x, self.modulus)
+        for k in self.keys:
+            x = torch.remainder(x * (x + k) + self.increment, self.modulus)
+            x = torch.remainder(x * self.multiplier, self.modulus)
+        return x
+
+    def member(self, seed: torch.Tensor, game: torch.Tensor) -> torch.Tensor:
+        """Each row's member index, from its ``(seed, game)``."""
+        keys = self.mix(self.mix(self.mix(seed) + self.stream) + game)
+        return (keys.unsqueeze(1) >= self.boundaries.unsqueeze(0)).to(torch.int64).sum(1)
+
+    def forward(self, observation: torch.Tensor, seed: torch.Tensor, game: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        member = self.member(seed, game)
+        actions = []
+        for policy in self.members:  # every member acts on every row; the drawn one's action is kept
+            actions.append(policy(observation))
+        stacked = torch.stack(actions, dim=1)  # (B, members, 2)
+        chosen = torch.gather(stacked, 1, member.view(-1, 1, 1).expand(-1, 1, stacked.size(2))).squeeze(1)
+        return chosen, member
 
 
 def resolve_player(store: LeagueStore, spec: str) -> Player:
@@ -110,12 +162,20 @@ def metadata(run: Any, player: Player, module: Any) -> dict[str, Any]:
     }
 
 
-def build(run_dir: Path, spec: str) -> tuple[ExportedPolicy, dict[str, Any]]:
+def build(run_dir: Path, spec: str) -> tuple[nn.Module, dict[str, Any]]:
+    """The player ``spec`` (``resolve_player``'s, or a mixture's name) as a module, and its metadata."""
+    from league.analysis.mixtures import store_mixture
+
     try:
         run, store = open_run(run_dir)
     except RunDirError as err:
         raise ExportError(str(err)) from err
     try:
+        if is_mixture_name(spec):
+            try:
+                return build_mixture(run, run_dir, store_mixture(store, spec))
+            except MixtureError as err:
+                raise ExportError(str(err)) from None
         player = resolve_player(store, spec)
     finally:
         store.close()
@@ -124,8 +184,40 @@ def build(run_dir: Path, spec: str) -> tuple[ExportedPolicy, dict[str, Any]]:
     return policy, metadata(run, player, module)
 
 
-def export(policy: ExportedPolicy, info: dict[str, Any], fmt: str, out: Path) -> None:
-    example = torch.zeros(1, info["observation"]["size"])
+def build_mixture(run: Any, run_dir: Path, mixture: Mixture) -> tuple[ExportedMixture, dict[str, Any]]:
+    """``mixture`` as one ``ExportedMixture``; one with scripted members is refused, naming them."""
+    scripted = mixture.scripted_members()
+    if scripted:
+        raise ExportError(
+            f"{mixture.name} has scripted members ({', '.join(p.name for p in scripted)}): they act on the game's exact "
+            "state, not on an observation, so they cannot be exported; export a trained player, or a mixture without them"
+        )
+    modules = [load_policy(run_dir, player) for player in mixture.members]
+    policies = [ExportedPolicy(m.pi, m.actor_inputs) for m in modules]
+    exported = ExportedMixture(policies, torch.from_numpy(boundaries(mixture.weights)), mixture.stream).eval()
+    info = metadata(run, mixture.members[0], modules[0])
+    info["player"] = {"name": mixture.name, "side": mixture.side, "mixture": True}
+    info["mixture"] = {
+        **mixture.as_json(),
+        "members": [{**row, "reward_method": p.reward_method, "version": p.version, "env_steps": p.env_steps,
+                     "hidden": list(m.settings.hidden)}
+                    for row, p, m in zip(mixture.as_json()["members"], mixture.members, modules)],
+        "interface": "forward(observation float32 (B, size), seed int64 (B,), game int64 (B,)) -> "
+                     "(action float32 (B, 2), member int64 (B,)); one member per (seed, game), league.core.mixture's draw",
+    }
+    info["hidden"] = [list(m.settings.hidden) for m in modules]
+    return exported, info
+
+
+def example_inputs(policy: nn.Module, info: dict[str, Any], batch: int) -> tuple[torch.Tensor, ...]:
+    """Inputs of ``batch`` rows to trace ``policy`` with: an observation batch, and a mixture's seeds and games."""
+    observation = torch.zeros(batch, info["observation"]["size"])
+    if isinstance(policy, ExportedMixture):
+        return observation, torch.zeros(batch, dtype=torch.int64), torch.arange(batch, dtype=torch.int64)
+    return (observation,)
+
+
+def export(policy: nn.Module, info: dict[str, Any], fmt: str, out: Path) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     # Written under its own name in a hidden directory beside it (the archive's folder inside
     # the file is named after the file), then moved: never a half-written file under that name.
@@ -134,17 +226,20 @@ def export(policy: ExportedPolicy, info: dict[str, Any], fmt: str, out: Path) ->
     scratch.mkdir()
     try:
         partial = scratch / out.name
-        _write(policy, info, fmt, example, partial)
+        _write(policy, info, fmt, partial)
         partial.replace(out)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
 
-def _write(policy: ExportedPolicy, info: dict[str, Any], fmt: str, example: torch.Tensor, partial: Path) -> None:
+def _write(policy: nn.Module, info: dict[str, Any], fmt: str, partial: Path) -> None:
+    mixture = isinstance(policy, ExportedMixture)
+    inputs, outputs = (["observation", "seed", "game"], ["action", "member"]) if mixture else (["observation"], ["action"])
     if fmt == "export":
         # A batch of 2 to trace: torch.export specialises a dimension of size 1 to a constant.
-        program = torch.export.export(policy, (example.expand(2, -1),),
-                                      dynamic_shapes={"observation": {0: torch.export.Dim("batch")}})
+        batch = torch.export.Dim("batch")
+        program = torch.export.export(policy, example_inputs(policy, info, 2),
+                                      dynamic_shapes={name: {0: batch} for name in inputs})
         torch.export.save(program, str(partial), extra_files={METADATA_FILE: json.dumps(info)})
     elif fmt == "torchscript":
         with warnings.catch_warnings():  # torch 2.13 marks torch.jit deprecated; the format is kept on purpose
@@ -156,8 +251,8 @@ def _write(policy: ExportedPolicy, info: dict[str, Any], fmt: str, example: torc
         with warnings.catch_warnings():  # the TorchScript-based exporter is the one that needs no onnxscript
             warnings.simplefilter("ignore", DeprecationWarning)
             torch.onnx.export(
-                policy, (example,), str(partial), input_names=["observation"], output_names=["action"],
-                dynamic_axes={"observation": {0: "batch"}, "action": {0: "batch"}}, dynamo=False,
+                policy, example_inputs(policy, info, 1), str(partial), input_names=inputs, output_names=outputs,
+                dynamic_axes={name: {0: "batch"} for name in inputs + outputs}, dynamo=False,
             )
         model = onnx.load(str(partial))
         onnx.helper.set_model_props(model, {METADATA_FILE: json.dumps(info)})

@@ -10,6 +10,8 @@ from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY
 from league.analysis.nash import (
     GROUP_HEADER, GROUP_NOTE, GROUP_TITLE, META_GAME_NOTE, MIXTURE_HEADER, MIXTURE_TITLE, league_meta_game,
 )
+from league.analysis.mixtures import final_mixtures
+from league.core.mixture import MIXTURE_MEMBER_HEADER, MIXTURE_MEMBER_NOTE
 from league.core.payoff import aggregate, player_record
 from league.state.run_dir import FINISHED, STOPPED, usable_checkpoints
 from league.state.store import LeagueStore
@@ -42,17 +44,19 @@ def league_table(store: LeagueStore, source: str | None = None) -> Table:
 
 
 def nash_section(store: LeagueStore) -> list:
-    """The meta-game's value, each group's Nash weight and range, and the players with nonzero Nash weight
-    at the LP's vertex (or why there is no meta-game)."""
+    """The meta-game's value, each group's Nash weight and range, the players with nonzero Nash weight
+    at the LP's vertex, and the mixture players with each member's weight and range (or why there is no meta-game)."""
     meta, why_not = league_meta_game(store.players(), store.newest_evaluation_rows())
     if meta is None:
         return [f"no meta-game: {why_not}"]
     tables = []
+    mixture_rows = [row for mixture in final_mixtures(store) for row in mixture.rows()]
     for title, caption, header, rows in ((GROUP_TITLE, GROUP_NOTE, GROUP_HEADER, meta.group_rows()),
-                                         (MIXTURE_TITLE, META_GAME_NOTE, MIXTURE_HEADER, meta.mixture_rows())):
+                                         (MIXTURE_TITLE, META_GAME_NOTE, MIXTURE_HEADER, meta.mixture_rows()),
+                                         ("mixture players", MIXTURE_MEMBER_NOTE, MIXTURE_MEMBER_HEADER, mixture_rows)):
         table = Table(title=title, caption=caption)
         for column in header:
-            table.add_column(column, justify="left" if column in ("side", "group", "player") else "right")
+            table.add_column(column, justify="left" if column in ("side", "group", "player", "mixture", "member") else "right")
         for row in rows:
             table.add_row(*row)
         tables.append(table)
@@ -107,6 +111,7 @@ def status_json(run_dir: Path, store: LeagueStore, state: str, source: str | Non
         "warnings": problems,
         "players": rows,
         "meta_game": meta.as_json() if meta is not None else None,
+        "mixtures": [mixture.as_json() for mixture in final_mixtures(store)],  # nash-attacker, nash-team
         "no_meta_game": why_not if meta is None else None,  # why ``meta_game`` is null
     }
 

@@ -28,6 +28,14 @@ nor in its meta-game. What their results say, the player's exploitability and it
 the league, is read by ``league.analysis.exploitability``; ``python -m league.exploit`` is the
 command. The curve points stay with the scratch run (they are printed, not stored).
 
+**Against a mixture player** (``nash-team``, ``league.core.mixture``): the scratch run holds
+every member, and each training episode's opponent is one member drawn with the mixture's
+weights from (the iteration's match-plan seed, the episode id): a ``MatchPlan`` whose opponents
+are the members. It is evaluated against the mixture (a member drawn per fixed game,
+``mixture_seed``). A mixture is no league member, so the best response's row has no parent;
+the store's meta entry ``MIXTURE_BEST_RESPONSES`` names the mixture it was trained against,
+its seed and its result.
+
 Not to be confused with exploiters (kind ``exploiter``, ``league.exploiters`` in the
 config): those train inside the league, against the other side's newest snapshots.
 """
@@ -40,8 +48,9 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from league.analysis.exploitability import BestResponseResult, CurvePoint, Exploitability, league_baseline
+from league.analysis.exploitability import BestResponseResult, CurvePoint, Exploitability, league_baseline, mixture_baseline
 from league.config import RunConfig
+from league.core.mixture import Contestant, Mixture
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
 from league.state.store import LeagueStore
@@ -53,9 +62,10 @@ DEFAULT_SEEDS = 3
 TERMINAL_REWARD = 30.0
 SCRATCH_PREFIX = ".exploit-"
 CURVE_POINTS = 6  # learning-curve points over a best response's budget
+MIXTURE_BEST_RESPONSES = "mixture_best_responses"  # the store's meta key: best responses against mixture players
 
 
-def best_response_config(run: RunConfig, exploited: Player, seed: int, env_steps: int, from_prior: bool = False) -> RunConfig:
+def best_response_config(run: RunConfig, exploited: Contestant, seed: int, env_steps: int, from_prior: bool = False) -> RunConfig:
     """The exploited run's config for one phase of the other side learning, seeded, terminal reward on, the
     other side from scratch (unless ``from_prior``), the exploited player acting by its mean, a learning curve."""
     data = run.model_dump(mode="json")
@@ -90,10 +100,10 @@ def best_response_curves(base):
     from league.evaluation.learning_curves import CurvePoint as StoredPoint
 
     class BestResponseCurves(base):
-        def __init__(self, run: RunConfig, run_dir: Path, exploited: Player, opponent: Player, log):
+        def __init__(self, run: RunConfig, run_dir: Path, exploited: Contestant, opponent: Player, log):
             super().__init__(run, run_dir, log)  # run_dir: the exploited player's, where its module is
             self.exploited = exploited
-            self.opponent = opponent  # its row in the scratch run
+            self.opponent = opponent  # its row in the scratch run (a mixture's first member: the row points need one)
 
         def measure(self, live_module, store, learners, candidates, steps_before, steps_now) -> Measurements:
             measured = Measurements([], [])
@@ -109,24 +119,35 @@ def best_response_curves(base):
 
 
 def best_response_training(base):
-    """The Coordinator class for one phase against ``opponent`` alone.
+    """The Coordinator class for one phase against ``opponents`` alone (one player, or a mixture's members).
 
     (Made from ``league.training.coordinator.Coordinator`` on first use: importing it imports RLlib.)"""
+    from league.core.match_plan import MatchPlan
 
     class BestResponseTraining(base):
-        def __init__(self, *args, opponent: Player, exploited: Player, exploited_run_dir: Path, name: str | None = None,
-                     **kwargs):
+        def __init__(self, *args, opponents: list[Player], exploited: Contestant, exploited_run_dir: Path,
+                     name: str | None = None, **kwargs):
             from league.evaluation.learning_curves import LearningCurves
 
             super().__init__(*args, **kwargs)
-            self.opponent = opponent  # the exploited player's row in the scratch run
+            self.opponents = opponents  # the exploited player's row in the scratch run, or a mixture's members'
+            self.mixture = exploited if isinstance(exploited, Mixture) else None
             self.name = name  # what the league will call the best response
             self.curves = best_response_curves(LearningCurves)(
-                self.run, exploited_run_dir, exploited, opponent, lambda text: self.log(text)
+                self.run, exploited_run_dir, exploited, opponents[0], lambda text: self.log(text)
             )
 
         def candidates(self, side: str) -> list[Player]:
-            return [self.opponent]
+            return list(self.opponents)
+
+        def match_plan(self, played=()):
+            """Against a mixture: each episode's opponent a member drawn with the mixture's weights."""
+            if self.mixture is None:
+                return super().match_plan(played)
+            learners, weights = self.in_phase("learner"), list(self.mixture.weights)
+            plan = MatchPlan([p.modules() for p in learners], [[o.modules() for o in self.opponents]] * len(learners),
+                             [weights] * len(learners), seed=int(self.rng.integers(2**31)))
+            return plan, {p.name: {o.name: w for o, w in zip(self.opponents, weights)} for p in learners}
 
         def store_name(self, columns: dict) -> str:  # its progress names it as the league will, not as its scratch run does
             return self.name or super().store_name(columns)
@@ -135,11 +156,12 @@ def best_response_training(base):
 
 
 def build_best_response(
-    run: RunConfig, run_dir: Path, exploited: Player, seed: int, env_steps: int, scratch: Path, name: str | None = None,
+    run: RunConfig, run_dir: Path, exploited: Contestant, seed: int, env_steps: int, scratch: Path, name: str | None = None,
     from_prior: bool = False,
 ):
     """The coordinator of a new one-phase run in ``scratch``: a fresh learner of the other side
-    against ``exploited`` alone (a learned player with its saved weights)."""
+    against ``exploited`` alone (a learned player with its saved weights), or against a mixture's
+    members, one drawn per episode with the mixture's weights."""
     from league.core.match_plan import MatchPlan
     from league.rllib import bridge
     from league.training.coordinator import Coordinator, PhaseState, RunState
@@ -152,24 +174,30 @@ def build_best_response(
             0, side=side, kind="learner", version=0,
             reward_method=config.game.attacker_reward if side == "attacker" else None,
         )
-        opponent = store.add_player(
-            0, side=exploited.side, kind=exploited.kind, version=exploited.version,
-            reward_method=exploited.reward_method, scripted_attacker=exploited.scripted_attacker,
-            scripted_targeter=exploited.scripted_targeter, scripted_defender=exploited.scripted_defender,
-        )
-    plan = MatchPlan([learner.modules()], [[opponent.modules()]], [[1.0]], seed)
+        members = exploited.members if isinstance(exploited, Mixture) else (exploited,)
+        opponents = [
+            store.add_player(
+                0, side=member.side, kind=member.kind, version=member.version,
+                reward_method=member.reward_method, scripted_attacker=member.scripted_attacker,
+                scripted_targeter=member.scripted_targeter, scripted_defender=member.scripted_defender,
+            )
+            for member in members
+        ]
+    weights = list(exploited.weights) if isinstance(exploited, Mixture) else [1.0]
+    plan = MatchPlan([learner.modules()], [[o.modules() for o in opponents]], [weights], seed)
     algo = bridge.build_config(config, store.players(), plan).build_algo()
-    if exploited.kind != "scripted":
-        bridge.load_frozen_module(algo, opponent.name, run_dir / exploited.checkpoint)
+    for member, opponent in zip(members, opponents):
+        if member.kind != "scripted":
+            bridge.load_frozen_module(algo, opponent.name, run_dir / member.checkpoint)
     coordinator = best_response_training(Coordinator)(
         config, scratch, store, algo, RunState(phase=PhaseState(index=0, side=side, start_iteration=0)),
-        seed=seed, opponent=opponent, exploited=exploited, exploited_run_dir=run_dir, name=name,
+        seed=seed, opponents=opponents, exploited=exploited, exploited_run_dir=run_dir, name=name,
     )
     return coordinator
 
 
 def train_best_response(
-    run: RunConfig, run_dir: Path, exploited: Player, seed: int, env_steps: int, scratch: Path, name: str | None = None,
+    run: RunConfig, run_dir: Path, exploited: Contestant, seed: int, env_steps: int, scratch: Path, name: str | None = None,
     from_prior: bool = False,
 ) -> tuple[Path, int, list[CurvePoint]]:
     """Train one best response against ``exploited`` in ``scratch``: its saved module, env steps trained, learning curve."""
@@ -197,23 +225,35 @@ def next_version(players: list[Player], side: str, reward_method: int | None) ->
     return 1 + max(versions, default=-1)
 
 
-def next_seeds(players: list[Player], exploited: Player, k: int) -> list[int]:
-    """``k`` seeds after every seed already used for a best response against ``exploited``."""
-    used = [p.seed for p in players if p.kind == "best_response" and p.parent == exploited.id and p.seed is not None]
+def mixture_best_responses(store: LeagueStore) -> list[dict]:
+    """The best responses trained against mixture players: player, mixture, seed, wins, games, budget, mixture seed."""
+    return list(store.get_meta(MIXTURE_BEST_RESPONSES, []))
+
+
+def next_seeds(players: list[Player], exploited: Contestant, k: int, store: LeagueStore | None = None) -> list[int]:
+    """``k`` seeds after every seed already used for a best response against ``exploited`` (a mixture's: from
+    ``store``'s ``MIXTURE_BEST_RESPONSES``)."""
+    if isinstance(exploited, Mixture):
+        used = [r["seed"] for r in (mixture_best_responses(store) if store is not None else []) if r["mixture"] == exploited.name]
+    else:
+        used = [p.seed for p in players if p.kind == "best_response" and p.parent == exploited.id and p.seed is not None]
     first = 1 + max(used, default=-1)
     return list(range(first, first + k))
 
 
 def exploit(
-    run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Player, seeds: list[int], env_steps: int, episodes: int,
-    from_prior: bool = False, say=print,
+    run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Contestant, seeds: list[int], env_steps: int,
+    episodes: int, from_prior: bool = False, say=print, mixture_seed: int = 0,
 ) -> Exploitability:
-    """Train, evaluate and record one best response per seed; their results against ``exploited``, with
-    the league's baselines (which best responses do not change) and each one's learning curve."""
+    """Train, evaluate and record one best response per seed; their results against ``exploited`` (a
+    mixture: a member drawn per fixed game from ``mixture_seed``), with the league's baselines (which
+    best responses do not change) and each one's learning curve."""
     from league.evaluation.engine import evaluate_pairs
     from league.core.payoff import league_ratings
 
-    baseline = league_baseline(exploited, store.players(), store.newest_evaluation_rows())
+    evaluated = store.newest_evaluation_rows()
+    baseline = (mixture_baseline(exploited, store.players(), evaluated) if isinstance(exploited, Mixture)
+                else league_baseline(exploited, store.players(), evaluated))
     say(baseline.line())
     results = []
     for seed in seeds:
@@ -229,8 +269,8 @@ def exploit(
                 run, run_dir, exploited, seed, env_steps, scratch, name, from_prior
             )
             columns = dict(
-                side=side, kind="best_response", version=version,
-                reward_method=reward_method, parent=exploited.id, env_steps=trained_steps, seed=seed,
+                side=side, kind="best_response", version=version, reward_method=reward_method,
+                parent=None if isinstance(exploited, Mixture) else exploited.id, env_steps=trained_steps, seed=seed,
                 env_step_budget=env_steps, from_prior=from_prior,
             )
             target = run_dir / "players" / name
@@ -246,14 +286,21 @@ def exploit(
         last = store.last_iteration()
         iteration = last["iteration"] if last else 0
         try:  # a module without its player row is removed: the database and players/ stay in step
-            [played] = evaluate_pairs(run.game, run_dir, [pair], episodes)
+            [played] = evaluate_pairs(run.game, run_dir, [pair], episodes, mixture_seed=mixture_seed)
             with store.transaction():
                 player = store.add_player(iteration, checkpoint=provisional.checkpoint, **columns)
-                # the provisional player's id (-1) becomes the new row's
-                rows = [replace(r, attacker=player.id) if r.attacker == -1 else replace(r, team=player.id)
-                        for r in played.outcome_rows()]
-                store.record_evaluation(iteration, rows)
-                store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
+                if isinstance(exploited, Mixture):  # no league result: what it won goes into the meta table
+                    store.set_meta(MIXTURE_BEST_RESPONSES, mixture_best_responses(store) + [{
+                        "player": player.name, "mixture": exploited.name, "seed": seed, "budget": env_steps,
+                        "from_prior": from_prior, "wins": wins_of(side, played.attacker_wins, played.games),
+                        "games": played.games, "mixture_seed": mixture_seed,
+                    }])
+                else:
+                    # the provisional player's id (-1) becomes the new row's
+                    rows = [replace(r, attacker=player.id) if r.attacker == -1 else replace(r, team=player.id)
+                            for r in played.outcome_rows()]
+                    store.record_evaluation(iteration, rows)
+                    store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
         except BaseException:
             shutil.rmtree(target, ignore_errors=True)
             raise
