@@ -11,6 +11,14 @@ The schema is written under a temporary name and renamed into place, so a reader
 sees a ``league.db`` without its tables. Opening an existing database checks it
 (``PRAGMA quick_check`` and the tables) and raises ``DamagedStoreError`` naming the
 file and the problem.
+
+Schema versions: a new database gets ``SCHEMA`` whole and ``PRAGMA user_version`` set to
+the number of the last of ``MIGRATIONS``; opening an older one applies the migrations
+after its version, in order, in one transaction. Databases made before the version was
+kept (``user_version`` 0, from the first schema on) get each migration whose change is
+not there yet (``Migration.present``): their opening code used to add these changes in
+whatever order it met them. ``tests/state/test_migrations.py`` opens a database of the
+first schema and checks it ends with ``SCHEMA``'s tables, columns and indexes.
 """
 
 from __future__ import annotations
@@ -20,10 +28,11 @@ import os
 import sqlite3
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from dataclasses import dataclass
+from typing import Any, Callable, Iterator
 
 from league.core.payoff import OutcomeCount
-from league.core.players import Player
+from league.core.players import NewPlayer, Player
 
 DB_NAME = "league.db"
 
@@ -123,6 +132,65 @@ CREATE TABLE IF NOT EXISTS evaluation_stats (  -- a pair's newest evaluation: re
 
 TABLES = ("players", "matches", "ratings", "iterations", "checkpoints", "meta")
 
+
+def _columns(db: sqlite3.Connection, table: str) -> set[str]:
+    return {row[1] for row in db.execute(f"PRAGMA table_info({table})")}
+
+
+def _schema_objects(db: sqlite3.Connection, kind: str) -> set[str]:
+    return {name for (name,) in db.execute("SELECT name FROM sqlite_master WHERE type = ?", (kind,))}
+
+
+# The statements of a migration are as they were written: later schema changes are later migrations.
+_FIRST_CURVE_STATS = (
+    "games INTEGER NOT NULL, attacker_wins INTEGER NOT NULL, attacker_return_1 REAL NOT NULL, "
+    "attacker_return_2 REAL NOT NULL, attacker_return_3 REAL NOT NULL, targeter_return REAL NOT NULL, "
+    "defender_return REAL NOT NULL, mean_steps REAL NOT NULL"
+)
+
+
+@dataclass(frozen=True)
+class Migration:
+    """One change of the schema since the first one (``number`` 1, the ``TABLES``)."""
+
+    number: int
+    what: str
+    sql: str
+    present: Callable[[sqlite3.Connection], bool]  # whether a database of unknown version has it already
+
+
+MIGRATIONS = (
+    Migration(2, "iterations.returns",
+              "ALTER TABLE iterations ADD COLUMN returns TEXT NOT NULL DEFAULT '{}';",
+              lambda db: "returns" in _columns(db, "iterations")),
+    Migration(3, "best responses' seed and budget",
+              "ALTER TABLE players ADD COLUMN seed INTEGER; ALTER TABLE players ADD COLUMN env_step_budget INTEGER;",
+              lambda db: {"seed", "env_step_budget"} <= _columns(db, "players")),
+    Migration(4, "learning curves",
+              "CREATE TABLE curve_points (iteration INTEGER NOT NULL, learner INTEGER NOT NULL REFERENCES players(id), "
+              "opponent INTEGER NOT NULL REFERENCES players(id), env_steps INTEGER NOT NULL, "
+              f"{_FIRST_CURVE_STATS}); "
+              "CREATE TABLE curve_references (iteration INTEGER NOT NULL, opponent INTEGER NOT NULL REFERENCES players(id), "
+              "side TEXT NOT NULL, kind TEXT NOT NULL, name TEXT NOT NULL, player INTEGER REFERENCES players(id), "
+              f"{_FIRST_CURVE_STATS});",
+              lambda db: {"curve_points", "curve_references"} <= _schema_objects(db, "table")),
+    Migration(5, "the matches index by pair",
+              "CREATE INDEX matches_by_pair ON matches (attacker, team, outcome, source, iteration, count);",
+              lambda db: "matches_by_pair" in _schema_objects(db, "index")),
+    Migration(6, "players.from_prior",
+              "ALTER TABLE players ADD COLUMN from_prior INTEGER;",
+              lambda db: "from_prior" in _columns(db, "players")),
+    Migration(7, "evaluation_stats",
+              "CREATE TABLE evaluation_stats (iteration INTEGER NOT NULL, source TEXT NOT NULL, "
+              "attacker INTEGER NOT NULL REFERENCES players(id), team INTEGER NOT NULL REFERENCES players(id), "
+              f"{_FIRST_CURVE_STATS});",
+              lambda db: "evaluation_stats" in _schema_objects(db, "table")),
+    Migration(8, "evaluation_stats.outcomes",
+              "ALTER TABLE evaluation_stats ADD COLUMN outcomes BLOB;",
+              lambda db: "outcomes" in _columns(db, "evaluation_stats")),
+)
+SCHEMA_VERSION = MIGRATIONS[-1].number  # ``SCHEMA``'s
+
 # Columns that hold when something happened or how long it took: the only ones in which two
 # runs of one config and seed may differ (``LeagueStore.contents``).
 WALL_CLOCK_COLUMNS = {
@@ -149,7 +217,7 @@ def create_database(path: Path) -> None:
     db = sqlite3.connect(partial, isolation_level=None)
     try:
         db.execute("PRAGMA journal_mode=WAL")  # kept in the file: every later connection is in WAL mode
-        db.executescript(f"BEGIN; {SCHEMA} COMMIT;")
+        db.executescript(f"BEGIN; {SCHEMA} PRAGMA user_version = {SCHEMA_VERSION}; COMMIT;")
     finally:
         db.close()  # the last connection folds the WAL into the file and removes it
     os.replace(partial, path)
@@ -170,18 +238,7 @@ class LeagueStore:
         try:
             self.check()
             self.db.execute("PRAGMA foreign_keys=ON")
-            columns = {row[1] for row in self.db.execute("PRAGMA table_info(iterations)")}
-            if "returns" not in columns:  # a database from before returns were recorded
-                self.db.execute("ALTER TABLE iterations ADD COLUMN returns TEXT NOT NULL DEFAULT '{}'")
-            tables = {name for (name,) in self.db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
-            if not {"curve_points", "evaluation_stats"} <= tables:  # from before curves, or evaluations' returns
-                self.db.executescript(f"BEGIN; {SCHEMA} COMMIT;")
-            columns = {row[1] for row in self.db.execute("PRAGMA table_info(players)")}
-            for column in ("seed", "env_step_budget", "from_prior"):  # a database from before best responses, or their start
-                if column not in columns:
-                    self.db.execute(f"ALTER TABLE players ADD COLUMN {column} INTEGER")
-            if "outcomes" not in {row[1] for row in self.db.execute("PRAGMA table_info(evaluation_stats)")}:
-                self.db.execute("ALTER TABLE evaluation_stats ADD COLUMN outcomes BLOB")  # from before per-game outcomes
+            self.migrate()
         except sqlite3.DatabaseError as err:
             self.db.close()
             raise DamagedStoreError(f"{path} is damaged ({err})") from err
@@ -199,6 +256,27 @@ class LeagueStore:
         if missing:
             what = "empty" if not tables else "not a league database"
             raise DamagedStoreError(f"{self.path} is {what} (no table {', '.join(missing)})")
+
+    def schema_version(self) -> int:
+        return self.db.execute("PRAGMA user_version").fetchone()[0]
+
+    def migrate(self) -> None:
+        """Bring an older database to ``SCHEMA_VERSION`` (see the module docstring), in one transaction."""
+        version = self.schema_version()
+        if version > SCHEMA_VERSION:
+            raise DamagedStoreError(
+                f"{self.path} has schema version {version}, made by a newer version of the league "
+                f"(this one reads up to {SCHEMA_VERSION})"
+            )
+        if version == SCHEMA_VERSION:
+            return
+        with self.transaction():
+            for migration in MIGRATIONS:
+                if migration.number > version and not migration.present(self.db):
+                    for statement in migration.sql.split(";"):
+                        if statement.strip():
+                            self.db.execute(statement)
+            self.db.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
 
     def backup(self, path: Path) -> None:
         """A consistent copy of the whole database at ``path`` (SQLite's online backup), in one rename."""
@@ -249,7 +327,9 @@ class LeagueStore:
         return json.loads(row[0]) if row else default
 
     # ---------------------------------------------------------------- players
-    def add_player(self, iteration: int, **columns: Any) -> Player:
+    def add_player(self, iteration: int, player: NewPlayer) -> Player:
+        """Record a new league member, created in ``iteration``; returns its row."""
+        columns = player.columns()
         names = ", ".join(columns) + ", created_iteration"
         marks = ", ".join("?" for _ in range(len(columns) + 1))
         cursor = self.db.execute(f"INSERT INTO players ({names}) VALUES ({marks})", (*columns.values(), iteration))

@@ -42,8 +42,10 @@ from pathlib import Path
 
 from league.analysis.exploitability import BestResponseResult, CurvePoint, Exploitability, league_baseline
 from league.config import RunConfig
+from league.core.league import League
 from league.core.payoff import wins_of
-from league.core.players import Player, other_side
+from league.core.players import NewPlayer, Player, other_side
+from league.core.schedule import PhaseState
 from league.state.store import LeagueStore
 
 DEFAULT_ENV_STEPS = 200_000
@@ -108,28 +110,36 @@ def best_response_curves(base):
     return BestResponseCurves
 
 
+class AgainstOne(League):
+    """A best response's league: its learner's only opponent is the exploited player (its row in the scratch run)."""
+
+    def __init__(self, run: RunConfig, opponent: Player):
+        super().__init__(run)
+        self.opponent = opponent
+
+    def candidates(self, phase: PhaseState, players: list[Player]) -> list[Player]:
+        return [self.opponent]
+
+
 def best_response_training(base):
     """The Coordinator class for one phase against ``opponent`` alone.
 
     (Made from ``league.training.coordinator.Coordinator`` on first use: importing it imports RLlib.)"""
 
     class BestResponseTraining(base):
-        def __init__(self, *args, opponent: Player, exploited: Player, exploited_run_dir: Path, name: str | None = None,
-                     **kwargs):
+        def __init__(self, run: RunConfig, *args, opponent: Player, exploited: Player, exploited_run_dir: Path,
+                     name: str | None = None, **kwargs):
             from league.evaluation.learning_curves import LearningCurves
 
-            super().__init__(*args, **kwargs)
+            super().__init__(run, *args, league=AgainstOne(run, opponent), **kwargs)
             self.opponent = opponent  # the exploited player's row in the scratch run
             self.name = name  # what the league will call the best response
             self.curves = best_response_curves(LearningCurves)(
                 self.run, exploited_run_dir, exploited, opponent, lambda text: self.log(text)
             )
 
-        def candidates(self, side: str) -> list[Player]:
-            return [self.opponent]
-
-        def store_name(self, columns: dict) -> str:  # its progress names it as the league will, not as its scratch run does
-            return self.name or super().store_name(columns)
+        def snapshot_name(self, snapshot: NewPlayer) -> str:  # its progress names it as the league will, not as its scratch run does
+            return self.name or super().snapshot_name(snapshot)
 
     return BestResponseTraining
 
@@ -142,21 +152,20 @@ def build_best_response(
     against ``exploited`` alone (a learned player with its saved weights)."""
     from league.core.match_plan import MatchPlan
     from league.rllib import bridge
-    from league.training.coordinator import Coordinator, PhaseState, RunState
+    from league.training.coordinator import Coordinator, RunState
 
     config = best_response_config(run, exploited, seed, env_steps, from_prior)
     side = other_side(exploited.side)
     store = LeagueStore(scratch, create=True)
     with store.transaction():
         learner = store.add_player(
-            0, side=side, kind="learner", version=0,
-            reward_method=config.game.attacker_reward if side == "attacker" else None,
+            0, NewPlayer(side, "learner", 0, config.game.attacker_reward if side == "attacker" else None)
         )
-        opponent = store.add_player(
-            0, side=exploited.side, kind=exploited.kind, version=exploited.version,
-            reward_method=exploited.reward_method, scripted_attacker=exploited.scripted_attacker,
-            scripted_targeter=exploited.scripted_targeter, scripted_defender=exploited.scripted_defender,
-        )
+        opponent = store.add_player(0, NewPlayer(
+            exploited.side, exploited.kind, exploited.version, exploited.reward_method,
+            scripted_attacker=exploited.scripted_attacker, scripted_targeter=exploited.scripted_targeter,
+            scripted_defender=exploited.scripted_defender,
+        ))
     plan = MatchPlan([learner.modules()], [[opponent.modules()]], [[1.0]], seed)
     algo = bridge.build_config(config, store.players(), plan).build_algo()
     if exploited.kind != "scripted":
@@ -224,14 +233,9 @@ def exploit(
             config = best_response_config(run, exploited, seed, env_steps, from_prior)
             reward_method = config.game.attacker_reward if side == "attacker" else None
             version = next_version(store.players(), side, reward_method)
-            name = Player(id=-1, side=side, kind="best_response", version=version, reward_method=reward_method).name
+            name = NewPlayer(side, "best_response", version, reward_method).name
             module, trained_steps, curve = train_best_response(
                 run, run_dir, exploited, seed, env_steps, scratch, name, from_prior
-            )
-            columns = dict(
-                side=side, kind="best_response", version=version,
-                reward_method=reward_method, parent=exploited.id, env_steps=trained_steps, seed=seed,
-                env_step_budget=env_steps, from_prior=from_prior,
             )
             target = run_dir / "players" / name
             partial = target.with_name(name + ".partial")
@@ -241,16 +245,18 @@ def exploit(
             partial.rename(target)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
-        provisional = Player(id=-1, checkpoint=str(target.relative_to(run_dir)), **columns)
+        new = NewPlayer(side, "best_response", version, reward_method, parent=exploited.id, env_steps=trained_steps,
+                        checkpoint=str(target.relative_to(run_dir)), seed=seed, env_step_budget=env_steps, from_prior=from_prior)
+        provisional = new.unrecorded()
         pair = (provisional, exploited) if side == "attacker" else (exploited, provisional)
         last = store.last_iteration()
         iteration = last["iteration"] if last else 0
         try:  # a module without its player row is removed: the database and players/ stay in step
             [played] = evaluate_pairs(run.game, run_dir, [pair], episodes)
             with store.transaction():
-                player = store.add_player(iteration, checkpoint=provisional.checkpoint, **columns)
-                # the provisional player's id (-1) becomes the new row's
-                rows = [replace(r, attacker=player.id) if r.attacker == -1 else replace(r, team=player.id)
+                player = store.add_player(iteration, new)
+                # the provisional player's id becomes the new row's
+                rows = [replace(r, attacker=player.id) if r.attacker == provisional.id else replace(r, team=player.id)
                         for r in played.outcome_rows()]
                 store.record_evaluation(iteration, rows)
                 store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
