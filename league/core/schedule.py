@@ -13,7 +13,7 @@
 
 A side's pool holds its exploiters' snapshots too (``league.exploiters``); the exploiters
 themselves play in their side's phases against the other side's newest snapshots only,
-and their games do not count in ``PhaseState`` (``league.training.coordinator``). With
+and their games do not count in ``PhaseState`` (``League.count_played``). With
 ``league.exploiter_phases: final`` they train only in one more phase after the self-play
 phases, alone: its ``PhaseState`` counts their games (``trainee_kinds``).
 

@@ -297,26 +297,35 @@ class EvaluationPool:
             ray.kill(actor)
 
 
+@dataclass(frozen=True)
+class Workers:
+    """Evaluation workers started for one ``evaluate_pairs`` call: how many, and each one's CPUs,
+    custom Ray resources and torch threads."""
+
+    count: int
+    cpus: float = 0.5
+    resources: dict[str, float] | None = None
+    torch_threads: int | None = None
+
+
 def evaluate_pairs(
     game: GameConfig,
     run_dir: Path,
     pairs: list[tuple[Player, Player]],
     episodes: int,
-    workers: int = 0,
-    cpus_per_worker: float = 0.5,
+    workers: int | Workers = 0,
     pool: EvaluationPool | None = None,
-    resources: dict[str, float] | None = None,
-    torch_threads: int | None = None,
     games: str = "dev",
     progress: Progress | None = None,
 ) -> list[PairEvaluation]:
-    """Every pair on the first ``episodes`` fixed ``games``: on ``pool``, on ``workers`` new actors, or here
-    (``progress``: told after each pair)."""
+    """Every pair on the first ``episodes`` fixed ``games``: on ``pool``, on ``workers`` new actors (a count,
+    or ``Workers``), or here (``progress``: told after each pair)."""
     if pool is not None:
         return pool.evaluate(pairs, episodes, games, progress)
-    if workers <= 0:
+    spec = workers if isinstance(workers, Workers) else Workers(workers)
+    if spec.count <= 0:
         return evaluate_here(game, run_dir, pairs, episodes, games, progress)
-    pool = EvaluationPool(game, run_dir, workers, cpus_per_worker, resources, torch_threads=torch_threads)
+    pool = EvaluationPool(game, run_dir, spec.count, spec.cpus, spec.resources, torch_threads=spec.torch_threads)
     try:
         return pool.evaluate(pairs, episodes, games, progress)
     finally:

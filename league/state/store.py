@@ -223,7 +223,71 @@ def create_database(path: Path) -> None:
     os.replace(partial, path)
 
 
-class LeagueStore:
+class _MeasurementTables:
+    """The tables of measurements on the fixed games: evaluations' returns and outcomes, learning curves."""
+
+    db: sqlite3.Connection
+
+    # ---------------------------------------------------------------- evaluations' returns and outcomes
+    def record_evaluation_stats(
+        self, iteration: int, source: str, attacker: int, team: int, stats: dict[str, float], outcomes: bytes | None = None
+    ) -> None:
+        """A pair's returns and wins on its fixed games (``CURVE_STATS`` columns) and each game's outcome,
+        replacing the pair's earlier ones."""
+        self.db.execute("DELETE FROM evaluation_stats WHERE source = ? AND attacker = ? AND team = ?", (source, attacker, team))
+        self.db.execute(
+            f"INSERT INTO evaluation_stats (iteration, source, attacker, team, {', '.join(CURVE_STATS)}, outcomes) "
+            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)}, ?)",
+            (iteration, source, attacker, team, *[stats[c] for c in CURVE_STATS], outcomes),
+        )
+
+    def evaluation_outcomes(self, source: str = "evaluation") -> dict[tuple[int, int], bytes]:
+        """``(attacker id, team id)`` -> each game's outcome byte of the pair's newest evaluation on ``source``'s games."""
+        cursor = self.db.execute(
+            "SELECT attacker, team, outcomes FROM evaluation_stats WHERE source = ? AND outcomes IS NOT NULL", (source,)
+        )
+        return {(a, t): outcomes for a, t, outcomes in cursor.fetchall()}
+
+    def evaluation_stats(self, source: str = "evaluation") -> dict[tuple[int, int], dict[str, float]]:
+        """``(attacker id, team id)`` -> the ``CURVE_STATS`` columns of the pair's newest evaluation on ``source``'s games."""
+        cursor = self.db.execute(f"SELECT attacker, team, {', '.join(CURVE_STATS)} FROM evaluation_stats WHERE source = ?", (source,))
+        return {(a, t): dict(zip(CURVE_STATS, values)) for a, t, *values in cursor.fetchall()}
+
+    # ---------------------------------------------------------------- learning curves
+    def record_curve_point(self, iteration: int, learner: int, opponent: int, env_steps: int, stats: dict[str, float]) -> None:
+        """One learning-curve point; ``stats`` holds the ``CURVE_STATS`` columns."""
+        values = [stats[c] for c in CURVE_STATS]
+        self.db.execute(
+            f"INSERT INTO curve_points (iteration, learner, opponent, env_steps, {', '.join(CURVE_STATS)}) "
+            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
+            (iteration, learner, opponent, env_steps, *values),
+        )
+
+    def record_curve_reference(
+        self, iteration: int, opponent: int, side: str, kind: str, name: str, player: int | None, stats: dict[str, float]
+    ) -> None:
+        """One reference line: ``name`` (scripted, or the ``player`` at version 0) against ``opponent``."""
+        values = [stats[c] for c in CURVE_STATS]
+        self.db.execute(
+            f"INSERT INTO curve_references (iteration, opponent, side, kind, name, player, {', '.join(CURVE_STATS)}) "
+            f"VALUES (?, ?, ?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
+            (iteration, opponent, side, kind, name, player, *values),
+        )
+
+    def curve_points(self) -> list[dict[str, Any]]:
+        """Every learning-curve point (``curve_points`` columns), by learner, opponent and env steps."""
+        cursor = self.db.execute("SELECT * FROM curve_points ORDER BY learner, opponent, env_steps, iteration")
+        names = [c[0] for c in cursor.description]
+        return [dict(zip(names, row)) for row in cursor.fetchall()]
+
+    def curve_references(self) -> list[dict[str, Any]]:
+        """Every reference row (``curve_references`` columns), by opponent."""
+        cursor = self.db.execute("SELECT * FROM curve_references ORDER BY opponent, side, kind, name")
+        names = [c[0] for c in cursor.description]
+        return [dict(zip(names, row)) for row in cursor.fetchall()]
+
+
+class LeagueStore(_MeasurementTables):
     def __init__(self, run_dir: Path, create: bool = False):
         path = Path(run_dir) / DB_NAME
         if create:
@@ -257,17 +321,12 @@ class LeagueStore:
             what = "empty" if not tables else "not a league database"
             raise DamagedStoreError(f"{self.path} is {what} (no table {', '.join(missing)})")
 
-    def schema_version(self) -> int:
-        return self.db.execute("PRAGMA user_version").fetchone()[0]
-
     def migrate(self) -> None:
         """Bring an older database to ``SCHEMA_VERSION`` (see the module docstring), in one transaction."""
-        version = self.schema_version()
+        (version,) = self.db.execute("PRAGMA user_version").fetchone()
         if version > SCHEMA_VERSION:
-            raise DamagedStoreError(
-                f"{self.path} has schema version {version}, made by a newer version of the league "
-                f"(this one reads up to {SCHEMA_VERSION})"
-            )
+            raise DamagedStoreError(f"{self.path} has schema version {version}, made by a newer version of the league "
+                                    f"(this one reads up to {SCHEMA_VERSION})")
         if version == SCHEMA_VERSION:
             return
         with self.transaction():
@@ -376,30 +435,6 @@ class LeagueStore:
             )
         self.record_outcomes(iteration, source, rows)
 
-    def record_evaluation_stats(
-        self, iteration: int, source: str, attacker: int, team: int, stats: dict[str, float], outcomes: bytes | None = None
-    ) -> None:
-        """A pair's returns and wins on its fixed games (``CURVE_STATS`` columns) and each game's outcome,
-        replacing the pair's earlier ones."""
-        self.db.execute("DELETE FROM evaluation_stats WHERE source = ? AND attacker = ? AND team = ?", (source, attacker, team))
-        self.db.execute(
-            f"INSERT INTO evaluation_stats (iteration, source, attacker, team, {', '.join(CURVE_STATS)}, outcomes) "
-            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)}, ?)",
-            (iteration, source, attacker, team, *[stats[c] for c in CURVE_STATS], outcomes),
-        )
-
-    def evaluation_outcomes(self, source: str = "evaluation") -> dict[tuple[int, int], bytes]:
-        """``(attacker id, team id)`` -> each game's outcome byte of the pair's newest evaluation on ``source``'s games."""
-        cursor = self.db.execute(
-            "SELECT attacker, team, outcomes FROM evaluation_stats WHERE source = ? AND outcomes IS NOT NULL", (source,)
-        )
-        return {(a, t): outcomes for a, t, outcomes in cursor.fetchall()}
-
-    def evaluation_stats(self, source: str = "evaluation") -> dict[tuple[int, int], dict[str, float]]:
-        """``(attacker id, team id)`` -> the ``CURVE_STATS`` columns of the pair's newest evaluation on ``source``'s games."""
-        cursor = self.db.execute(f"SELECT attacker, team, {', '.join(CURVE_STATS)} FROM evaluation_stats WHERE source = ?", (source,))
-        return {(a, t): dict(zip(CURVE_STATS, values)) for a, t, *values in cursor.fetchall()}
-
     def newest_evaluation_rows(self, source: str = "evaluation") -> list[OutcomeCount]:
         """The outcomes of each pair's newest evaluation on the dev games (or ``source`` ``test``)."""
         return self._outcome_counts(
@@ -501,36 +536,3 @@ class LeagueStore:
             self.db.execute("DELETE FROM players WHERE created_iteration > ?", (iteration,))
             if (self.get_meta("evaluated_iteration") or 0) > iteration:  # its evaluation rows are gone
                 self.db.execute("DELETE FROM meta WHERE key = 'evaluated_iteration'")
-
-    # ---------------------------------------------------------------- learning curves
-    def record_curve_point(self, iteration: int, learner: int, opponent: int, env_steps: int, stats: dict[str, float]) -> None:
-        """One learning-curve point; ``stats`` holds the ``CURVE_STATS`` columns."""
-        values = [stats[c] for c in CURVE_STATS]
-        self.db.execute(
-            f"INSERT INTO curve_points (iteration, learner, opponent, env_steps, {', '.join(CURVE_STATS)}) "
-            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
-            (iteration, learner, opponent, env_steps, *values),
-        )
-
-    def record_curve_reference(
-        self, iteration: int, opponent: int, side: str, kind: str, name: str, player: int | None, stats: dict[str, float]
-    ) -> None:
-        """One reference line: ``name`` (scripted, or the ``player`` at version 0) against ``opponent``."""
-        values = [stats[c] for c in CURVE_STATS]
-        self.db.execute(
-            f"INSERT INTO curve_references (iteration, opponent, side, kind, name, player, {', '.join(CURVE_STATS)}) "
-            f"VALUES (?, ?, ?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
-            (iteration, opponent, side, kind, name, player, *values),
-        )
-
-    def curve_points(self) -> list[dict[str, Any]]:
-        """Every learning-curve point (``curve_points`` columns), by learner, opponent and env steps."""
-        cursor = self.db.execute("SELECT * FROM curve_points ORDER BY learner, opponent, env_steps, iteration")
-        names = [c[0] for c in cursor.description]
-        return [dict(zip(names, row)) for row in cursor.fetchall()]
-
-    def curve_references(self) -> list[dict[str, Any]]:
-        """Every reference row (``curve_references`` columns), by opponent."""
-        cursor = self.db.execute("SELECT * FROM curve_references ORDER BY opponent, side, kind, name")
-        names = [c[0] for c in cursor.description]
-        return [dict(zip(names, row)) for row in cursor.fetchall()]

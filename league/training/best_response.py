@@ -37,7 +37,7 @@ from __future__ import annotations
 import shutil
 import tempfile
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from league.analysis.exploitability import BestResponseResult, CurvePoint, Exploitability, league_baseline
@@ -213,12 +213,21 @@ def next_seeds(players: list[Player], exploited: Player, k: int) -> list[int]:
     return list(range(first, first + k))
 
 
+@dataclass(frozen=True)
+class Budget:
+    """How each best response is trained and measured."""
+
+    env_steps: int  # trained for
+    episodes: int  # fixed dev games it is evaluated on against the exploited player
+    from_prior: bool = False  # started from the run's prior (else from scratch)
+
+
 def exploit(
-    run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Player, seeds: list[int], env_steps: int, episodes: int,
-    from_prior: bool = False, say=print,
+    run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Player, seeds: list[int], budget: Budget, say=print,
 ) -> Exploitability:
     """Train, evaluate and record one best response per seed; their results against ``exploited``, with
     the league's baselines (which best responses do not change) and each one's learning curve."""
+    env_steps, episodes, from_prior = budget.env_steps, budget.episodes, budget.from_prior
     from league.evaluation.engine import evaluate_pairs
     from league.core.payoff import league_ratings
 

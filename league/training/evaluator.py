@@ -13,7 +13,7 @@ from typing import Any, Callable
 
 from league.config import RunConfig
 from league.core.players import Player
-from league.evaluation.engine import EvaluationPool, PairEvaluation, evaluate_pairs
+from league.evaluation.engine import EvaluationPool, PairEvaluation, Workers, evaluate_pairs
 from league.evaluation.results import record_evaluations
 from league.evaluation.tables import evaluation_markdown
 from league.state.run_dir import EVALUATION_FILE, write_replacing
@@ -58,10 +58,8 @@ class Evaluator:
         ev, run = self.run.evaluation, self.run
         started = time.perf_counter()
         with stop.interruptible():  # playing the games writes nothing
-            results = evaluate_pairs(
-                run.game, self.run_dir, pairs, ev.episodes, ev.workers, ev.cpus_per_worker,
-                self.pool, ev.custom_resources_per_worker, run.resources.torch_threads,
-            )
+            workers = Workers(ev.workers, ev.cpus_per_worker, ev.custom_resources_per_worker, run.resources.torch_threads)
+            results = evaluate_pairs(run.game, self.run_dir, pairs, ev.episodes, workers, self.pool)
         seconds = time.perf_counter() - started
         with store.transaction():
             record_evaluations(store, iteration, results)
