@@ -30,7 +30,7 @@ from pathlib import Path
 
 import torch
 
-from league.evaluation.engine import MissingModuleError, PairEvaluation, evaluate_pairs
+from league.evaluation.engine import MissingModuleError, PairEvaluation, Workers, evaluate_pairs
 from league.evaluation.panel import add_scripted
 from league.evaluation.results import last_iteration, record_evaluations
 from league.evaluation.tables import format_table, method_rows, method_table
@@ -156,9 +156,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         ev = run.evaluation
         results = evaluate_pairs(
-            run.game, args.run_dir.resolve(), pairs, episodes, workers, ev.cpus_per_worker,
-            resources=ev.custom_resources_per_worker, torch_threads=run.resources.torch_threads, games=args.games,
-            progress=PairProgress(f"evaluating on {episodes} {args.games} games each"), mixture_seed=args.mixture_seed,
+            run.game, args.run_dir.resolve(), pairs, episodes,
+            Workers(workers, ev.cpus_per_worker, ev.custom_resources_per_worker, run.resources.torch_threads),
+            games=args.games, progress=PairProgress(f"evaluating on {episodes} {args.games} games each"),
+            mixture_seed=args.mixture_seed,
         )
     except MissingModuleError as err:
         print(f"error: {err}", file=sys.stderr)

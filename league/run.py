@@ -33,10 +33,10 @@ import shutil
 import time
 from pathlib import Path
 
-import yaml
-
-from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, load_config
-from league.training.coordinator import Coordinator, phase_count
+from league.config import ConfigError, RunConfig, load_config
+from league.training.lifecycle import (
+    finish, finished_iteration, intact_checkpoints, new_run, phase_count, resume_run, stopped_message,
+)
 from league.training.progress import ProgressReporter
 from league.state.run_dir import (
     LOCK_FILE,
@@ -48,7 +48,6 @@ from league.state.run_dir import (
     lock_run,
     open_run,
     restore_damaged_database,
-    usable_checkpoints,
 )
 from league.training.stop import StopRequests, Stopped
 from league.state.store import DB_NAME, LeagueStore
@@ -119,49 +118,6 @@ def start_ray(run: RunConfig, address: str | None) -> None:
         raise
 
 
-def new_run(run: RunConfig, run_dir: Path, stop: StopRequests) -> Coordinator:
-    """Create the run and commit its first checkpoint; on any failure or stop, remove what was written."""
-    store = None
-    try:
-        (run_dir / RUN_CONFIG_FILE).write_text(yaml.safe_dump(run.model_dump(mode="json"), sort_keys=False))
-        store = LeagueStore(run_dir, create=True)
-        return Coordinator.start(run, run_dir, store, check=stop.check)
-    except BaseException:
-        if store is not None:
-            store.close()
-        for path in run_dir.iterdir():  # the lock file stays until the lock is released
-            if path.name != LOCK_FILE:
-                shutil.rmtree(path) if path.is_dir() else path.unlink()
-        raise
-
-
-def intact_checkpoints(run_dir: Path, store: LeagueStore) -> tuple[list[tuple[int, str]], list[str]]:
-    """``usable_checkpoints``, or a ``RunDirError`` when there is none to resume from."""
-    usable, problems = usable_checkpoints(run_dir, store)
-    if usable:
-        return usable, problems
-    if not problems:
-        raise RunDirError(
-            f"{run_dir} has no checkpoint: its first start was killed before it made one; "
-            f"delete it (rm -r {run_dir}) and start the run again"
-        )
-    raise RunDirError(f"{run_dir} has no intact checkpoint to resume from ({'; '.join(problems)}): start a new run")
-
-
-def resume_run(run_dir: Path, run: RunConfig, store: LeagueStore, say) -> Coordinator:
-    """Restore the newest intact checkpoint; roll the database back to it."""
-    usable, problems = intact_checkpoints(run_dir, store)
-    iteration, path = usable[0]
-    last_committed = (store.last_iteration() or {}).get("iteration", 0)
-    coordinator = Coordinator.resume(run, run_dir, store, iteration, path)
-    if problems:
-        say(
-            f"resuming from the checkpoint of iteration {iteration}, the newest intact one: {'; '.join(problems)}; "
-            f"the league database was rolled back from iteration {last_committed} to {iteration}"
-        )
-    return coordinator
-
-
 def open_for_training(args: argparse.Namespace) -> tuple[RunConfig, Path, LeagueStore | None, object, bool]:
     """Validate everything and take the run directory's lock, before anything is written.
 
@@ -194,26 +150,6 @@ def open_for_training(args: argparse.Namespace) -> tuple[RunConfig, Path, League
             shutil.rmtree(run_dir, ignore_errors=True)
         raise
     return run, run_dir, None, lock, created
-
-
-def finished_iteration(run_dir: Path, store: LeagueStore) -> int | None:
-    """The last iteration of a run that trained to its end and was evaluated, its newest
-    checkpoint intact, else None."""
-    checkpoint = store.last_checkpoint()
-    if checkpoint is None or not checkpoint[2].get("training_done") or usable_checkpoints(run_dir, store)[1]:
-        return None
-    return checkpoint[0] if store.get_meta("evaluated_iteration") == checkpoint[0] else None
-
-
-def stopped_message(run_dir: Path, store: LeagueStore | None) -> str:
-    if store is None:  # a new run stopped before its first checkpoint: nothing was kept
-        return f"stopped before the first checkpoint; nothing was kept in {run_dir}"
-    last = store.last_iteration()
-    checkpoint = store.last_checkpoint()
-    return (
-        f"stopped at iteration {last['iteration'] if last else 0}, last checkpoint {checkpoint[0] if checkpoint else 'none'}, "
-        f"resume with `python -m league.run --resume {run_dir}`"
-    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -254,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         started = time.perf_counter()
         coordinator.train(progress, stop)
-        coordinator.finish(progress, stop)
+        finish(coordinator, progress, stop)
         total = time.perf_counter() - started
         progress.message(f"done in {total:.0f} s ({coordinator.time_split.summary(total)}): {run_dir}")
         return 0

@@ -2,7 +2,8 @@
 
 SQL only in the store; no import cycles among league's modules or packages; no module
 imports a command (the modules at the top of ``league/`` with a ``__main__`` block);
-``league/core/`` without Ray or torch; ``ray.rllib`` only in ``league/rllib/``; who won
+``league/core/`` without Ray or torch; the league's decision module (``league/core/league.py``) without
+the store, Ray or RLlib; ``ray.rllib`` only in ``league/rllib/``; who won
 only in ``league/core/payoff.py``; RLlib's ``model_config`` read only by ``league/rllib/module_settings.py``; the
 README's layout table lists the packages, docs/architecture.md's every module.
 
@@ -241,6 +242,43 @@ def test_the_import_scans_find_planted_imports(tmp_path):
     assert external_imports(root, "torch", "league.core!") == ["league.core.payoff: torch"]
     assert external_imports(root, "ray", "league.core!") == ["league.core.pfsp: ray"]
     assert external_imports(root, "ray.rllib", "league.rllib") == ["league.training.coordinator: ray.rllib.core.columns"]
+
+
+# ---------------------------------------------------------------- the league only decides
+DECISION_MODULE = "league.core.league"
+NOT_FOR_DECISIONS = ("league.state", "league.rllib")  # the store and run directory; the RLlib adapter
+
+
+def decision_imports(root: Path) -> list[str]:
+    """What the league's decision module reaches, itself or through the league modules it imports,
+    of the store (``league.state``, ``sqlite3``), Ray or RLlib (Ray's or our adapter)."""
+    graph = import_graph(root)
+    reached, more = set(), {DECISION_MODULE}
+    while more:
+        reached |= more
+        more = {i for name in more for i in graph.get(name, ())} - reached
+    found = [f"{DECISION_MODULE} reaches {name}" for name in sorted(reached) if name.startswith(NOT_FOR_DECISIONS)]
+    return found + [hit for library in ("ray", "sqlite3") for name in sorted(reached)
+                    for hit in external_imports(root, library, name + "!")]
+
+
+def test_the_league_decides_without_the_store_ray_or_rllib():
+    assert DECISION_MODULE in import_graph(ROOT)
+    assert decision_imports(ROOT) == []
+
+
+def test_the_decision_scan_finds_a_planted_store_ray_and_rllib_import(tmp_path):
+    root = plant(tmp_path, {
+        "league/core/league.py": "from league.core import payoff\nfrom league.state.store import LeagueStore\n",
+        "league/core/payoff.py": "def fit():\n    from league.rllib import bridge\n    import ray\n",
+        "league/state/store.py": "import sqlite3\n",
+        "league/rllib/bridge.py": "from ray.rllib.algorithms.ppo import PPO\n",
+        "league/core/pfsp.py": "import ray\n",  # not reached from the decision module
+    })
+    assert decision_imports(root) == [
+        "league.core.league reaches league.rllib.bridge", "league.core.league reaches league.state.store",
+        "league.core.payoff: ray", "league.rllib.bridge: ray.rllib.algorithms.ppo", "league.state.store: sqlite3",
+    ]
 
 
 # ---------------------------------------------------------------- who won

@@ -314,3 +314,9 @@ def league_meta_game(players: list[Player], evaluation_rows: list[OutcomeCount])
     if not attackers or not teams:
         return None, "the league has no frozen attacker or no frozen team"
     return meta_game(attackers, teams, payoff), ""
+
+
+def mixture_by_player(meta: MetaGame) -> dict[int, float]:
+    """Each frozen player's weight in its side's Nash mixture, by player id (0 off the support)."""
+    sides = ((meta.attackers, meta.equilibrium.row_mixture), (meta.teams, meta.equilibrium.column_mixture))
+    return {p.id: float(w) if w > SUPPORT_THRESHOLD else 0.0 for players, mixture in sides for p, w in zip(players, mixture)}

@@ -13,7 +13,7 @@
 
 A side's pool holds its exploiters' snapshots too (``league.exploiters``); the exploiters
 themselves play in their side's phases against the other side's newest snapshots only,
-and their games do not count in ``PhaseState`` (``league.training.coordinator``). With
+and their games do not count in ``PhaseState`` (``League.count_played``). With
 ``league.exploiter_phases: final`` they train only in one more phase after the self-play
 phases, alone: its ``PhaseState`` counts their games (``trainee_kinds``).
 
@@ -25,13 +25,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from league.config import LeagueSettings, RunConfig
-from league.core.players import Player
+from league.core.players import Player, Side
 
 
 @dataclass
 class PhaseState:
     index: int
-    side: str
+    side: Side
     start_iteration: int
     episodes: int = 0
     learner_wins: int = 0
@@ -45,7 +45,7 @@ class ProtocolSchedule:
         self.league = league
         self.phases = len(league.phases)
 
-    def side(self, index: int) -> str:
+    def side(self, index: int) -> Side:
         return self.league.phases[index].learner
 
     def trainee_kinds(self, index: int) -> tuple[str, ...]:
@@ -77,7 +77,7 @@ class SelfPlaySchedule:
         self.league = league
         self.phases = league.selfplay_phases + (league.exploiter_phases != "all")
 
-    def side(self, index: int) -> str:
+    def side(self, index: int) -> Side:
         return "attacker" if index % 2 == 0 else "team"
 
     def trainee_kinds(self, index: int) -> tuple[str, ...]:

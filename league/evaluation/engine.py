@@ -335,28 +335,35 @@ class EvaluationPool:
             ray.kill(actor)
 
 
+@dataclass(frozen=True)
+class Workers:
+    """Evaluation workers started for one ``evaluate_pairs`` call: how many, and each one's CPUs,
+    custom Ray resources and torch threads."""
+
+    count: int
+    cpus: float = 0.5
+    resources: dict[str, float] | None = None
+    torch_threads: int | None = None
+
+
 def evaluate_pairs(
     game: GameConfig,
     run_dir: Path,
     pairs: list[tuple[Contestant, Contestant]],
     episodes: int,
-    workers: int = 0,
-    cpus_per_worker: float = 0.5,
+    workers: int | Workers = 0,
     pool: EvaluationPool | None = None,
-    resources: dict[str, float] | None = None,
-    torch_threads: int | None = None,
     games: str = "dev",
     progress: Progress | None = None,
     mixture_seed: int = 0,
 ) -> list[PairEvaluation]:
-    """Every pair on the first ``episodes`` fixed ``games``: on ``pool``, on ``workers`` new actors, or here
-    (``progress``: told after each pair). Pairs with a mixture (its members drawn from ``mixture_seed``) are
-    played here, after the others, and put back in their places."""
+    """Every pair on the first ``episodes`` fixed ``games``: on ``pool``, on ``workers`` new actors (a count,
+    or ``Workers``), or here (``progress``: told after each pair). Pairs with a mixture (its members drawn
+    from ``mixture_seed``) are played here, after the others, and put back in their places."""
     mixed = [k for k, (a, t) in enumerate(pairs) if isinstance(a, Mixture) or isinstance(t, Mixture)]
     if mixed:
         plain = [pair for k, pair in enumerate(pairs) if k not in mixed]
-        done = evaluate_pairs(game, run_dir, plain, episodes, workers, cpus_per_worker, pool, resources, torch_threads,
-                              games) if plain else []
+        done = evaluate_pairs(game, run_dir, plain, episodes, workers, pool, games) if plain else []
         here = evaluate_here(game, run_dir, [pairs[k] for k in mixed], episodes, games, mixture_seed=mixture_seed)
         by_place = dict(zip(mixed, here)) | dict(zip([k for k in range(len(pairs)) if k not in mixed], done))
         if progress:
@@ -364,9 +371,10 @@ def evaluate_pairs(
         return [by_place[k] for k in range(len(pairs))]
     if pool is not None:
         return pool.evaluate(pairs, episodes, games, progress)
-    if workers <= 0:
+    spec = workers if isinstance(workers, Workers) else Workers(workers)
+    if spec.count <= 0:
         return evaluate_here(game, run_dir, pairs, episodes, games, progress)
-    pool = EvaluationPool(game, run_dir, workers, cpus_per_worker, resources, torch_threads=torch_threads)
+    pool = EvaluationPool(game, run_dir, spec.count, spec.cpus, spec.resources, torch_threads=spec.torch_threads)
     try:
         return pool.evaluate(pairs, episodes, games, progress)
     finally:

@@ -43,7 +43,7 @@ from envs.scripted import PLAYERS
 from league.analysis.statistics import wilson_interval
 from league.config import RunConfig
 from league.core.payoff import wins_of
-from league.core.players import Player
+from league.core.players import NewPlayer, Player
 from league.evaluation.engine import evaluate_pair, load_module
 
 # Where a live learner's module is "loaded" from: it comes from the algorithm, not the disk.
@@ -121,11 +121,11 @@ def curve_opponents(side: str, candidates: list[Player], scripted_teams: list[Pl
 
 
 def scripted_references(side: str) -> list[Player]:
-    """Every scripted player of ``side`` as a (row-less) league player."""
+    """Every scripted player of ``side`` as a league player without a row (``NewPlayer.unrecorded``)."""
     if side == "attacker":
-        return [Player(id=-1, side="attacker", kind="scripted", version=0, scripted_attacker=name) for name in PLAYERS["attacker"]]
+        return [NewPlayer("attacker", "scripted", 0, scripted_attacker=name).unrecorded() for name in PLAYERS["attacker"]]
     return [
-        Player(id=-1, side="team", kind="scripted", version=0, scripted_targeter=targeter, scripted_defender=defender)
+        NewPlayer("team", "scripted", 0, scripted_targeter=targeter, scripted_defender=defender).unrecorded()
         for targeter in PLAYERS["targeter"]
         for defender in PLAYERS["defender"]
     ]

@@ -8,10 +8,8 @@ resumed run, as if the config had listed them).
 
 from __future__ import annotations
 
-from typing import Any
-
 from envs.scripted import PLAYERS, ScriptedPlayer
-from league.core.players import Player
+from league.core.players import NewPlayer
 from league.evaluation.results import last_iteration
 from league.state.store import LeagueStore
 
@@ -22,8 +20,8 @@ def every_scripted_player() -> list[str]:
             *(f"{t}+{d}" for t in sorted(PLAYERS["targeter"]) for d in sorted(PLAYERS["defender"]))]
 
 
-def scripted_columns(name: str) -> dict[str, Any]:
-    """The league-member columns of a scripted player named ``attacker`` or ``targeter+defender``."""
+def scripted_member(name: str) -> NewPlayer:
+    """The league member of a scripted player named ``attacker`` or ``targeter+defender``."""
     targeter, team, defender = name.partition("+")
     try:  # ScriptedPlayer names the unknown player and the known ones
         if team:
@@ -33,19 +31,18 @@ def scripted_columns(name: str) -> dict[str, Any]:
     except ValueError as err:
         raise ValueError(f"{name}: {err} (a team: targeter+defender)") from None
     if team:
-        return dict(side="team", kind="scripted", version=0, scripted_targeter=targeter, scripted_defender=defender)
-    return dict(side="attacker", kind="scripted", version=0, scripted_attacker=name)
+        return NewPlayer("team", "scripted", 0, scripted_targeter=targeter, scripted_defender=defender)
+    return NewPlayer("attacker", "scripted", 0, scripted_attacker=name)
 
 
 def add_scripted(store: LeagueStore, names: list[str]) -> list[str]:
     """Make the named scripted players league members (those not yet in it); their names.
     Every name is checked before anything is written."""
-    columns = [scripted_columns(name) for name in names]
+    added = [scripted_member(name) for name in names]
     members = {p.name for p in store.players()}
-    added = [Player(id=-1, **c) for c in columns]
     with store.transaction():
-        for player, c in zip(added, columns):
+        for player in added:
             if player.name not in members:
-                store.add_player(last_iteration(store), **c)
+                store.add_player(last_iteration(store), player)
                 members.add(player.name)
     return [p.name for p in added]

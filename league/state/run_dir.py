@@ -37,7 +37,7 @@ from league.config import RUN_CONFIG_FILE, ConfigError, RunConfig, added_at_its_
 from league.state.store import DB_NAME, DamagedStoreError, LeagueStore
 
 LOCK_FILE = "run.lock"
-EVALUATION_FILE = "evaluation.md"  # the run's final evaluation, the last file it writes (``Coordinator.finish``)
+EVALUATION_FILE = "evaluation.md"  # the run's final evaluation, the last file it writes (``league.training.lifecycle.finish``)
 TRAINING, STOPPED, FINISHED = "training", "stopped", "finished"  # ``run_state``
 MANIFEST_FILE = "league_manifest.json"
 CONFIG_META = "config"  # the validated config as created, in the store's meta table

@@ -11,6 +11,14 @@ The schema is written under a temporary name and renamed into place, so a reader
 sees a ``league.db`` without its tables. Opening an existing database checks it
 (``PRAGMA quick_check`` and the tables) and raises ``DamagedStoreError`` naming the
 file and the problem.
+
+Schema versions: a new database gets ``SCHEMA`` whole and ``PRAGMA user_version`` set to
+the number of the last of ``MIGRATIONS``; opening an older one applies the migrations
+after its version, in order, in one transaction. Databases made before the version was
+kept (``user_version`` 0, from the first schema on) get each migration whose change is
+not there yet (``Migration.present``): their opening code used to add these changes in
+whatever order it met them. ``tests/state/test_migrations.py`` opens a database of the
+first schema and checks it ends with ``SCHEMA``'s tables, columns and indexes.
 """
 
 from __future__ import annotations
@@ -20,10 +28,11 @@ import os
 import sqlite3
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from dataclasses import dataclass
+from typing import Any, Callable, Iterator
 
 from league.core.payoff import OutcomeCount
-from league.core.players import Player
+from league.core.players import NewPlayer, Player
 
 DB_NAME = "league.db"
 
@@ -123,6 +132,65 @@ CREATE TABLE IF NOT EXISTS evaluation_stats (  -- a pair's newest evaluation: re
 
 TABLES = ("players", "matches", "ratings", "iterations", "checkpoints", "meta")
 
+
+def _columns(db: sqlite3.Connection, table: str) -> set[str]:
+    return {row[1] for row in db.execute(f"PRAGMA table_info({table})")}
+
+
+def _schema_objects(db: sqlite3.Connection, kind: str) -> set[str]:
+    return {name for (name,) in db.execute("SELECT name FROM sqlite_master WHERE type = ?", (kind,))}
+
+
+# The statements of a migration are as they were written: later schema changes are later migrations.
+_FIRST_CURVE_STATS = (
+    "games INTEGER NOT NULL, attacker_wins INTEGER NOT NULL, attacker_return_1 REAL NOT NULL, "
+    "attacker_return_2 REAL NOT NULL, attacker_return_3 REAL NOT NULL, targeter_return REAL NOT NULL, "
+    "defender_return REAL NOT NULL, mean_steps REAL NOT NULL"
+)
+
+
+@dataclass(frozen=True)
+class Migration:
+    """One change of the schema since the first one (``number`` 1, the ``TABLES``)."""
+
+    number: int
+    what: str
+    sql: str
+    present: Callable[[sqlite3.Connection], bool]  # whether a database of unknown version has it already
+
+
+MIGRATIONS = (
+    Migration(2, "iterations.returns",
+              "ALTER TABLE iterations ADD COLUMN returns TEXT NOT NULL DEFAULT '{}';",
+              lambda db: "returns" in _columns(db, "iterations")),
+    Migration(3, "best responses' seed and budget",
+              "ALTER TABLE players ADD COLUMN seed INTEGER; ALTER TABLE players ADD COLUMN env_step_budget INTEGER;",
+              lambda db: {"seed", "env_step_budget"} <= _columns(db, "players")),
+    Migration(4, "learning curves",
+              "CREATE TABLE curve_points (iteration INTEGER NOT NULL, learner INTEGER NOT NULL REFERENCES players(id), "
+              "opponent INTEGER NOT NULL REFERENCES players(id), env_steps INTEGER NOT NULL, "
+              f"{_FIRST_CURVE_STATS}); "
+              "CREATE TABLE curve_references (iteration INTEGER NOT NULL, opponent INTEGER NOT NULL REFERENCES players(id), "
+              "side TEXT NOT NULL, kind TEXT NOT NULL, name TEXT NOT NULL, player INTEGER REFERENCES players(id), "
+              f"{_FIRST_CURVE_STATS});",
+              lambda db: {"curve_points", "curve_references"} <= _schema_objects(db, "table")),
+    Migration(5, "the matches index by pair",
+              "CREATE INDEX matches_by_pair ON matches (attacker, team, outcome, source, iteration, count);",
+              lambda db: "matches_by_pair" in _schema_objects(db, "index")),
+    Migration(6, "players.from_prior",
+              "ALTER TABLE players ADD COLUMN from_prior INTEGER;",
+              lambda db: "from_prior" in _columns(db, "players")),
+    Migration(7, "evaluation_stats",
+              "CREATE TABLE evaluation_stats (iteration INTEGER NOT NULL, source TEXT NOT NULL, "
+              "attacker INTEGER NOT NULL REFERENCES players(id), team INTEGER NOT NULL REFERENCES players(id), "
+              f"{_FIRST_CURVE_STATS});",
+              lambda db: "evaluation_stats" in _schema_objects(db, "table")),
+    Migration(8, "evaluation_stats.outcomes",
+              "ALTER TABLE evaluation_stats ADD COLUMN outcomes BLOB;",
+              lambda db: "outcomes" in _columns(db, "evaluation_stats")),
+)
+SCHEMA_VERSION = MIGRATIONS[-1].number  # ``SCHEMA``'s
+
 # Columns that hold when something happened or how long it took: the only ones in which two
 # runs of one config and seed may differ (``LeagueStore.contents``).
 WALL_CLOCK_COLUMNS = {
@@ -149,13 +217,77 @@ def create_database(path: Path) -> None:
     db = sqlite3.connect(partial, isolation_level=None)
     try:
         db.execute("PRAGMA journal_mode=WAL")  # kept in the file: every later connection is in WAL mode
-        db.executescript(f"BEGIN; {SCHEMA} COMMIT;")
+        db.executescript(f"BEGIN; {SCHEMA} PRAGMA user_version = {SCHEMA_VERSION}; COMMIT;")
     finally:
         db.close()  # the last connection folds the WAL into the file and removes it
     os.replace(partial, path)
 
 
-class LeagueStore:
+class _MeasurementTables:
+    """The tables of measurements on the fixed games: evaluations' returns and outcomes, learning curves."""
+
+    db: sqlite3.Connection
+
+    # ---------------------------------------------------------------- evaluations' returns and outcomes
+    def record_evaluation_stats(
+        self, iteration: int, source: str, attacker: int, team: int, stats: dict[str, float], outcomes: bytes | None = None
+    ) -> None:
+        """A pair's returns and wins on its fixed games (``CURVE_STATS`` columns) and each game's outcome,
+        replacing the pair's earlier ones."""
+        self.db.execute("DELETE FROM evaluation_stats WHERE source = ? AND attacker = ? AND team = ?", (source, attacker, team))
+        self.db.execute(
+            f"INSERT INTO evaluation_stats (iteration, source, attacker, team, {', '.join(CURVE_STATS)}, outcomes) "
+            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)}, ?)",
+            (iteration, source, attacker, team, *[stats[c] for c in CURVE_STATS], outcomes),
+        )
+
+    def evaluation_outcomes(self, source: str = "evaluation") -> dict[tuple[int, int], bytes]:
+        """``(attacker id, team id)`` -> each game's outcome byte of the pair's newest evaluation on ``source``'s games."""
+        cursor = self.db.execute(
+            "SELECT attacker, team, outcomes FROM evaluation_stats WHERE source = ? AND outcomes IS NOT NULL", (source,)
+        )
+        return {(a, t): outcomes for a, t, outcomes in cursor.fetchall()}
+
+    def evaluation_stats(self, source: str = "evaluation") -> dict[tuple[int, int], dict[str, float]]:
+        """``(attacker id, team id)`` -> the ``CURVE_STATS`` columns of the pair's newest evaluation on ``source``'s games."""
+        cursor = self.db.execute(f"SELECT attacker, team, {', '.join(CURVE_STATS)} FROM evaluation_stats WHERE source = ?", (source,))
+        return {(a, t): dict(zip(CURVE_STATS, values)) for a, t, *values in cursor.fetchall()}
+
+    # ---------------------------------------------------------------- learning curves
+    def record_curve_point(self, iteration: int, learner: int, opponent: int, env_steps: int, stats: dict[str, float]) -> None:
+        """One learning-curve point; ``stats`` holds the ``CURVE_STATS`` columns."""
+        values = [stats[c] for c in CURVE_STATS]
+        self.db.execute(
+            f"INSERT INTO curve_points (iteration, learner, opponent, env_steps, {', '.join(CURVE_STATS)}) "
+            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
+            (iteration, learner, opponent, env_steps, *values),
+        )
+
+    def record_curve_reference(
+        self, iteration: int, opponent: int, side: str, kind: str, name: str, player: int | None, stats: dict[str, float]
+    ) -> None:
+        """One reference line: ``name`` (scripted, or the ``player`` at version 0) against ``opponent``."""
+        values = [stats[c] for c in CURVE_STATS]
+        self.db.execute(
+            f"INSERT INTO curve_references (iteration, opponent, side, kind, name, player, {', '.join(CURVE_STATS)}) "
+            f"VALUES (?, ?, ?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
+            (iteration, opponent, side, kind, name, player, *values),
+        )
+
+    def curve_points(self) -> list[dict[str, Any]]:
+        """Every learning-curve point (``curve_points`` columns), by learner, opponent and env steps."""
+        cursor = self.db.execute("SELECT * FROM curve_points ORDER BY learner, opponent, env_steps, iteration")
+        names = [c[0] for c in cursor.description]
+        return [dict(zip(names, row)) for row in cursor.fetchall()]
+
+    def curve_references(self) -> list[dict[str, Any]]:
+        """Every reference row (``curve_references`` columns), by opponent."""
+        cursor = self.db.execute("SELECT * FROM curve_references ORDER BY opponent, side, kind, name")
+        names = [c[0] for c in cursor.description]
+        return [dict(zip(names, row)) for row in cursor.fetchall()]
+
+
+class LeagueStore(_MeasurementTables):
     def __init__(self, run_dir: Path, create: bool = False):
         path = Path(run_dir) / DB_NAME
         if create:
@@ -170,18 +302,7 @@ class LeagueStore:
         try:
             self.check()
             self.db.execute("PRAGMA foreign_keys=ON")
-            columns = {row[1] for row in self.db.execute("PRAGMA table_info(iterations)")}
-            if "returns" not in columns:  # a database from before returns were recorded
-                self.db.execute("ALTER TABLE iterations ADD COLUMN returns TEXT NOT NULL DEFAULT '{}'")
-            tables = {name for (name,) in self.db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
-            if not {"curve_points", "evaluation_stats"} <= tables:  # from before curves, or evaluations' returns
-                self.db.executescript(f"BEGIN; {SCHEMA} COMMIT;")
-            columns = {row[1] for row in self.db.execute("PRAGMA table_info(players)")}
-            for column in ("seed", "env_step_budget", "from_prior"):  # a database from before best responses, or their start
-                if column not in columns:
-                    self.db.execute(f"ALTER TABLE players ADD COLUMN {column} INTEGER")
-            if "outcomes" not in {row[1] for row in self.db.execute("PRAGMA table_info(evaluation_stats)")}:
-                self.db.execute("ALTER TABLE evaluation_stats ADD COLUMN outcomes BLOB")  # from before per-game outcomes
+            self.migrate()
         except sqlite3.DatabaseError as err:
             self.db.close()
             raise DamagedStoreError(f"{path} is damaged ({err})") from err
@@ -199,6 +320,22 @@ class LeagueStore:
         if missing:
             what = "empty" if not tables else "not a league database"
             raise DamagedStoreError(f"{self.path} is {what} (no table {', '.join(missing)})")
+
+    def migrate(self) -> None:
+        """Bring an older database to ``SCHEMA_VERSION`` (see the module docstring), in one transaction."""
+        (version,) = self.db.execute("PRAGMA user_version").fetchone()
+        if version > SCHEMA_VERSION:
+            raise DamagedStoreError(f"{self.path} has schema version {version}, made by a newer version of the league "
+                                    f"(this one reads up to {SCHEMA_VERSION})")
+        if version == SCHEMA_VERSION:
+            return
+        with self.transaction():
+            for migration in MIGRATIONS:
+                if migration.number > version and not migration.present(self.db):
+                    for statement in migration.sql.split(";"):
+                        if statement.strip():
+                            self.db.execute(statement)
+            self.db.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
 
     def backup(self, path: Path) -> None:
         """A consistent copy of the whole database at ``path`` (SQLite's online backup), in one rename."""
@@ -249,7 +386,9 @@ class LeagueStore:
         return json.loads(row[0]) if row else default
 
     # ---------------------------------------------------------------- players
-    def add_player(self, iteration: int, **columns: Any) -> Player:
+    def add_player(self, iteration: int, player: NewPlayer) -> Player:
+        """Record a new league member, created in ``iteration``; returns its row."""
+        columns = player.columns()
         names = ", ".join(columns) + ", created_iteration"
         marks = ", ".join("?" for _ in range(len(columns) + 1))
         cursor = self.db.execute(f"INSERT INTO players ({names}) VALUES ({marks})", (*columns.values(), iteration))
@@ -295,30 +434,6 @@ class LeagueStore:
                 (attacker, team, iteration, source),
             )
         self.record_outcomes(iteration, source, rows)
-
-    def record_evaluation_stats(
-        self, iteration: int, source: str, attacker: int, team: int, stats: dict[str, float], outcomes: bytes | None = None
-    ) -> None:
-        """A pair's returns and wins on its fixed games (``CURVE_STATS`` columns) and each game's outcome,
-        replacing the pair's earlier ones."""
-        self.db.execute("DELETE FROM evaluation_stats WHERE source = ? AND attacker = ? AND team = ?", (source, attacker, team))
-        self.db.execute(
-            f"INSERT INTO evaluation_stats (iteration, source, attacker, team, {', '.join(CURVE_STATS)}, outcomes) "
-            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)}, ?)",
-            (iteration, source, attacker, team, *[stats[c] for c in CURVE_STATS], outcomes),
-        )
-
-    def evaluation_outcomes(self, source: str = "evaluation") -> dict[tuple[int, int], bytes]:
-        """``(attacker id, team id)`` -> each game's outcome byte of the pair's newest evaluation on ``source``'s games."""
-        cursor = self.db.execute(
-            "SELECT attacker, team, outcomes FROM evaluation_stats WHERE source = ? AND outcomes IS NOT NULL", (source,)
-        )
-        return {(a, t): outcomes for a, t, outcomes in cursor.fetchall()}
-
-    def evaluation_stats(self, source: str = "evaluation") -> dict[tuple[int, int], dict[str, float]]:
-        """``(attacker id, team id)`` -> the ``CURVE_STATS`` columns of the pair's newest evaluation on ``source``'s games."""
-        cursor = self.db.execute(f"SELECT attacker, team, {', '.join(CURVE_STATS)} FROM evaluation_stats WHERE source = ?", (source,))
-        return {(a, t): dict(zip(CURVE_STATS, values)) for a, t, *values in cursor.fetchall()}
 
     def newest_evaluation_rows(self, source: str = "evaluation") -> list[OutcomeCount]:
         """The outcomes of each pair's newest evaluation on the dev games (or ``source`` ``test``)."""
@@ -421,36 +536,3 @@ class LeagueStore:
             self.db.execute("DELETE FROM players WHERE created_iteration > ?", (iteration,))
             if (self.get_meta("evaluated_iteration") or 0) > iteration:  # its evaluation rows are gone
                 self.db.execute("DELETE FROM meta WHERE key = 'evaluated_iteration'")
-
-    # ---------------------------------------------------------------- learning curves
-    def record_curve_point(self, iteration: int, learner: int, opponent: int, env_steps: int, stats: dict[str, float]) -> None:
-        """One learning-curve point; ``stats`` holds the ``CURVE_STATS`` columns."""
-        values = [stats[c] for c in CURVE_STATS]
-        self.db.execute(
-            f"INSERT INTO curve_points (iteration, learner, opponent, env_steps, {', '.join(CURVE_STATS)}) "
-            f"VALUES (?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
-            (iteration, learner, opponent, env_steps, *values),
-        )
-
-    def record_curve_reference(
-        self, iteration: int, opponent: int, side: str, kind: str, name: str, player: int | None, stats: dict[str, float]
-    ) -> None:
-        """One reference line: ``name`` (scripted, or the ``player`` at version 0) against ``opponent``."""
-        values = [stats[c] for c in CURVE_STATS]
-        self.db.execute(
-            f"INSERT INTO curve_references (iteration, opponent, side, kind, name, player, {', '.join(CURVE_STATS)}) "
-            f"VALUES (?, ?, ?, ?, ?, ?, {', '.join('?' for _ in CURVE_STATS)})",
-            (iteration, opponent, side, kind, name, player, *values),
-        )
-
-    def curve_points(self) -> list[dict[str, Any]]:
-        """Every learning-curve point (``curve_points`` columns), by learner, opponent and env steps."""
-        cursor = self.db.execute("SELECT * FROM curve_points ORDER BY learner, opponent, env_steps, iteration")
-        names = [c[0] for c in cursor.description]
-        return [dict(zip(names, row)) for row in cursor.fetchall()]
-
-    def curve_references(self) -> list[dict[str, Any]]:
-        """Every reference row (``curve_references`` columns), by opponent."""
-        cursor = self.db.execute("SELECT * FROM curve_references ORDER BY opponent, side, kind, name")
-        names = [c[0] for c in cursor.description]
-        return [dict(zip(names, row)) for row in cursor.fetchall()]

@@ -45,14 +45,17 @@ from __future__ import annotations
 import shutil
 import tempfile
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from league.analysis.exploitability import BestResponseResult, CurvePoint, Exploitability, league_baseline, mixture_baseline
 from league.config import RunConfig
+from league.core.league import League, Records, Weights
+from league.core.match_plan import MatchPlan
 from league.core.mixture import Contestant, Mixture
 from league.core.payoff import wins_of
-from league.core.players import Player, other_side
+from league.core.players import NewPlayer, Player, other_side
+from league.core.schedule import PhaseState
 from league.state.store import LeagueStore
 
 DEFAULT_ENV_STEPS = 200_000
@@ -118,39 +121,47 @@ def best_response_curves(base):
     return BestResponseCurves
 
 
+class AgainstFixed(League):
+    """A best response's league: its learner meets the exploited player alone, or a mixture's members,
+    each episode's drawn with the mixture's weights (rows in the scratch run)."""
+
+    def __init__(self, run: RunConfig, opponents: list[Player], weights: list[float] | None = None):
+        super().__init__(run)
+        self.opponents = opponents
+        self.weights = weights  # a mixture's; None: PFSP over the one opponent, as any league
+
+    def candidates(self, phase: PhaseState, players: list[Player]) -> list[Player]:
+        return list(self.opponents)
+
+    def match_plan(self, phase: PhaseState, records: Records, seed: int) -> tuple[MatchPlan, Weights]:
+        if self.weights is None:
+            return super().match_plan(phase, records, seed)
+        learners = self.in_phase(phase, records.players, "learner")
+        plan = MatchPlan([p.modules() for p in learners], [[o.modules() for o in self.opponents]] * len(learners),
+                         [list(self.weights)] * len(learners), seed=seed)
+        return plan, {p.name: {o.name: w for o, w in zip(self.opponents, self.weights)} for p in learners}
+
+
 def best_response_training(base):
     """The Coordinator class for one phase against ``opponents`` alone (one player, or a mixture's members).
 
     (Made from ``league.training.coordinator.Coordinator`` on first use: importing it imports RLlib.)"""
-    from league.core.match_plan import MatchPlan
 
     class BestResponseTraining(base):
-        def __init__(self, *args, opponents: list[Player], exploited: Contestant, exploited_run_dir: Path,
+        def __init__(self, run: RunConfig, *args, opponents: list[Player], exploited: Contestant, exploited_run_dir: Path,
                      name: str | None = None, **kwargs):
             from league.evaluation.learning_curves import LearningCurves
 
-            super().__init__(*args, **kwargs)
+            weights = list(exploited.weights) if isinstance(exploited, Mixture) else None
+            super().__init__(run, *args, league=AgainstFixed(run, opponents, weights), **kwargs)
             self.opponents = opponents  # the exploited player's row in the scratch run, or a mixture's members'
-            self.mixture = exploited if isinstance(exploited, Mixture) else None
             self.name = name  # what the league will call the best response
             self.curves = best_response_curves(LearningCurves)(
                 self.run, exploited_run_dir, exploited, opponents[0], lambda text: self.log(text)
             )
 
-        def candidates(self, side: str) -> list[Player]:
-            return list(self.opponents)
-
-        def match_plan(self, played=()):
-            """Against a mixture: each episode's opponent a member drawn with the mixture's weights."""
-            if self.mixture is None:
-                return super().match_plan(played)
-            learners, weights = self.in_phase("learner"), list(self.mixture.weights)
-            plan = MatchPlan([p.modules() for p in learners], [[o.modules() for o in self.opponents]] * len(learners),
-                             [weights] * len(learners), seed=int(self.rng.integers(2**31)))
-            return plan, {p.name: {o.name: w for o, w in zip(self.opponents, weights)} for p in learners}
-
-        def store_name(self, columns: dict) -> str:  # its progress names it as the league will, not as its scratch run does
-            return self.name or super().store_name(columns)
+        def snapshot_name(self, snapshot: NewPlayer) -> str:  # its progress names it as the league will, not as its scratch run does
+            return self.name or super().snapshot_name(snapshot)
 
     return BestResponseTraining
 
@@ -162,25 +173,23 @@ def build_best_response(
     """The coordinator of a new one-phase run in ``scratch``: a fresh learner of the other side
     against ``exploited`` alone (a learned player with its saved weights), or against a mixture's
     members, one drawn per episode with the mixture's weights."""
-    from league.core.match_plan import MatchPlan
     from league.rllib import bridge
-    from league.training.coordinator import Coordinator, PhaseState, RunState
+    from league.training.coordinator import Coordinator, RunState
 
     config = best_response_config(run, exploited, seed, env_steps, from_prior)
     side = other_side(exploited.side)
     store = LeagueStore(scratch, create=True)
     with store.transaction():
         learner = store.add_player(
-            0, side=side, kind="learner", version=0,
-            reward_method=config.game.attacker_reward if side == "attacker" else None,
+            0, NewPlayer(side, "learner", 0, config.game.attacker_reward if side == "attacker" else None)
         )
         members = exploited.members if isinstance(exploited, Mixture) else (exploited,)
         opponents = [
-            store.add_player(
-                0, side=member.side, kind=member.kind, version=member.version,
-                reward_method=member.reward_method, scripted_attacker=member.scripted_attacker,
-                scripted_targeter=member.scripted_targeter, scripted_defender=member.scripted_defender,
-            )
+            store.add_player(0, NewPlayer(
+                member.side, member.kind, member.version, member.reward_method,
+                scripted_attacker=member.scripted_attacker, scripted_targeter=member.scripted_targeter,
+                scripted_defender=member.scripted_defender,
+            ))
             for member in members
         ]
     weights = list(exploited.weights) if isinstance(exploited, Mixture) else [1.0]
@@ -241,13 +250,23 @@ def next_seeds(players: list[Player], exploited: Contestant, k: int, store: Leag
     return list(range(first, first + k))
 
 
+@dataclass(frozen=True)
+class Budget:
+    """How each best response is trained and measured."""
+
+    env_steps: int  # trained for
+    episodes: int  # fixed dev games it is evaluated on against the exploited player
+    from_prior: bool = False  # started from the run's prior (else from scratch)
+
+
 def exploit(
-    run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Contestant, seeds: list[int], env_steps: int,
-    episodes: int, from_prior: bool = False, say=print, mixture_seed: int = 0,
+    run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Contestant, seeds: list[int], budget: Budget, say=print,
+    mixture_seed: int = 0,
 ) -> Exploitability:
     """Train, evaluate and record one best response per seed; their results against ``exploited`` (a
     mixture: a member drawn per fixed game from ``mixture_seed``), with the league's baselines (which
     best responses do not change) and each one's learning curve."""
+    env_steps, episodes, from_prior = budget.env_steps, budget.episodes, budget.from_prior
     from league.evaluation.engine import evaluate_pairs
     from league.core.payoff import league_ratings
 
@@ -264,14 +283,9 @@ def exploit(
             config = best_response_config(run, exploited, seed, env_steps, from_prior)
             reward_method = config.game.attacker_reward if side == "attacker" else None
             version = next_version(store.players(), side, reward_method)
-            name = Player(id=-1, side=side, kind="best_response", version=version, reward_method=reward_method).name
+            name = NewPlayer(side, "best_response", version, reward_method).name
             module, trained_steps, curve = train_best_response(
                 run, run_dir, exploited, seed, env_steps, scratch, name, from_prior
-            )
-            columns = dict(
-                side=side, kind="best_response", version=version, reward_method=reward_method,
-                parent=None if isinstance(exploited, Mixture) else exploited.id, env_steps=trained_steps, seed=seed,
-                env_step_budget=env_steps, from_prior=from_prior,
             )
             target = run_dir / "players" / name
             partial = target.with_name(name + ".partial")
@@ -281,14 +295,16 @@ def exploit(
             partial.rename(target)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
-        provisional = Player(id=-1, checkpoint=str(target.relative_to(run_dir)), **columns)
+        new = NewPlayer(side, "best_response", version, reward_method, parent=None if isinstance(exploited, Mixture) else exploited.id, env_steps=trained_steps,
+                        checkpoint=str(target.relative_to(run_dir)), seed=seed, env_step_budget=env_steps, from_prior=from_prior)
+        provisional = new.unrecorded()
         pair = (provisional, exploited) if side == "attacker" else (exploited, provisional)
         last = store.last_iteration()
         iteration = last["iteration"] if last else 0
         try:  # a module without its player row is removed: the database and players/ stay in step
             [played] = evaluate_pairs(run.game, run_dir, [pair], episodes, mixture_seed=mixture_seed)
             with store.transaction():
-                player = store.add_player(iteration, checkpoint=provisional.checkpoint, **columns)
+                player = store.add_player(iteration, new)
                 if isinstance(exploited, Mixture):  # no league result: what it won goes into the meta table
                     store.set_meta(MIXTURE_BEST_RESPONSES, mixture_best_responses(store) + [{
                         "player": player.name, "mixture": exploited.name, "seed": seed, "budget": env_steps,
@@ -296,8 +312,8 @@ def exploit(
                         "games": played.games, "mixture_seed": mixture_seed,
                     }])
                 else:
-                    # the provisional player's id (-1) becomes the new row's
-                    rows = [replace(r, attacker=player.id) if r.attacker == -1 else replace(r, team=player.id)
+                    # the provisional player's id becomes the new row's
+                    rows = [replace(r, attacker=player.id) if r.attacker == provisional.id else replace(r, team=player.id)
                             for r in played.outcome_rows()]
                     store.record_evaluation(iteration, rows)
                     store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))

@@ -23,19 +23,10 @@ from rich.console import Console
 from tensorboardX import SummaryWriter
 
 if TYPE_CHECKING:
-    from league.core.schedule import PhaseState
     from league.evaluation.engine import PairEvaluation
+    from league.training.records import IterationRecord
 
 TRAIN_METRICS = ("policy_loss", "vf_loss", "entropy", "mean_kl_loss")
-
-
-@dataclass(frozen=True)
-class IterationTiming:
-    """Wall-clock seconds of one iteration's parts."""
-
-    sampling: float  # ``algo.train()`` minus the Learner's updates
-    learning: float  # the Learner's updates
-    evaluation: float  # in-training evaluation of the learners (0 when none was due)
 
 
 @dataclass
@@ -79,50 +70,38 @@ class ProgressReporter:
         else:
             print(f"{time.strftime('%H:%M:%S')} {text}", file=self.stream, flush=True)
 
-    def iteration(
-        self,
-        iteration: int,
-        env_steps: int,
-        league_size: int,
-        learner_stats: dict[str, dict[str, Any]],
-        weights: dict[str, dict[str, float]],
-        phase: "PhaseState",
-        steps: int,
-        timing: IterationTiming,
-        snapshots: list[str],
-        evaluation: list["PairEvaluation"],
-    ) -> None:
-        """Report ``iteration`` (``env_steps`` in all so far), trained in ``phase`` (as it stood after it).
+    def iteration(self, record: "IterationRecord") -> None:
+        """Report one iteration: its line, and its scalars against the run's env steps.
 
-        ``learner_stats``: the Learner's results per learner module
-        (``league.rllib.bridge.learner_stats``); ``steps``: the env steps of this iteration.
-        """
+        The phase is as it stood after the iteration (before a phase change); the speed is the
+        iteration's env steps over its sampling and learning."""
+        phase, timing, evaluation, env_steps = record.phase, record.timing, record.evaluation, record.env_steps
         phase_rate = phase.learner_wins / phase.episodes if phase.episodes else float("nan")
         side = phase.side
         train_seconds = timing.sampling + timing.learning
-        steps_per_second = steps / train_seconds if train_seconds > 0 else float("nan")
+        steps_per_second = record.steps / train_seconds if train_seconds > 0 else float("nan")
         evaluated = f", eval {timing.evaluation:.1f} s" if evaluation or timing.evaluation >= 0.05 else ""  # or curves
         self.message(
-            f"phase {phase.index + 1}/{self.total_phases} {side:8s} | iter {iteration:4d} | "
+            f"phase {phase.index + 1}/{self.total_phases} {side:8s} | iter {record.iteration:4d} | "
             f"{env_steps:8d} env steps in all | {steps_per_second:6.0f} steps/s | "
             f"sample {timing.sampling:.1f} s, learn {timing.learning:.1f} s{evaluated} | "
-            f"{side} win rate {phase_rate:.2f} over {phase.episodes} ep | league {league_size}"
-            + (f" | snapshot {', '.join(snapshots)}" if snapshots else "")
+            f"{side} win rate {phase_rate:.2f} over {phase.episodes} ep | league {record.league_size}"
+            + (f" | snapshot {', '.join(record.snapshot_names)}" if record.snapshot_names else "")
         )
         i = env_steps  # TensorBoard's x axis: env steps, which runs of other batch sizes share; not iterations
         self.scalar("perf/sps", steps_per_second, i)
-        self.scalar("perf/iteration", iteration, i)
+        self.scalar("perf/iteration", record.iteration, i)
         self.scalar("perf/sampling_seconds", timing.sampling, i)
         self.scalar("perf/learning_seconds", timing.learning, i)
         if evaluation:
             self.scalar("perf/evaluation_seconds", timing.evaluation, i)
-        self.scalar("league/size", league_size, i)
+        self.scalar("league/size", record.league_size, i)
         self.scalar("league/phase", phase.index, i)
         self.scalar(f"league/{side}_phase_win_rate", phase_rate, i)
-        for learner, opponents in weights.items():
+        for learner, opponents in record.weights.items():
             for opponent, p in opponents.items():
                 self.scalar(f"league/pfsp/{learner}/{opponent}", p, i)
-        for module, stats in learner_stats.items():
+        for module, stats in record.train.learner_stats.items():
             for key in TRAIN_METRICS:
                 self.scalar(f"train/{module}/{key}", stats.get(key), i)
         self.evaluation(evaluation, i)

@@ -1,12 +1,16 @@
 """A graceful stop on SIGINT (Ctrl-C) and SIGTERM (a scheduler preempting the run).
 
 A signal is only recorded; the run raises ``Stopped`` at the next safe point
-(``check``: between iterations, between the steps of starting a run). Inside an
-``interruptible()`` block (sampling and learning, evaluation: where the time goes and
-nothing is written) it is raised at once. Raising anywhere else could land inside
-Ray's or torch's start-up code, which may swallow it or leave half-built objects
-behind. Whatever was interrupted, the last committed iteration and its checkpoint
-stay as they were: the run directory is written only by whole steps.
+(``check``: between iterations, between the steps of starting a run). A training
+iteration is finished first: the signal makes its checkpoint due
+(``League.checkpoint_due``), so the run stops with nothing to redo and ``--resume`` goes
+on from there; a second signal during the iteration's sampling and learning stops it at
+once (``interruptible(signals=2)``), losing that iteration. Inside an ``interruptible()``
+block (the final evaluation: nothing is written while its games are played) the first
+signal raises at once. Raising anywhere else could land inside Ray's or torch's start-up
+code, which may swallow it or leave half-built objects behind. Whatever was interrupted,
+the last committed iteration and its checkpoint stay as they were: the run directory is
+written only by whole steps.
 """
 
 from __future__ import annotations
@@ -35,7 +39,8 @@ class StopRequests:
 
     def __init__(self) -> None:
         self.signum: int | None = None
-        self._raise_now = False
+        self.count = 0  # signals received
+        self._raise_at: int | None = None  # inside ``interruptible``: the count of signals that raises at once
         self._previous = {signum: signal.getsignal(signum) for signum in SIGNALS}
 
     def install(self) -> None:
@@ -54,11 +59,16 @@ class StopRequests:
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
 
+    @property
+    def requested(self) -> bool:
+        return self.signum is not None
+
     def _handle(self, signum: int, frame: object) -> None:
         if self.signum is None:
             self.signum = signum
-        if self._raise_now:
-            self._raise_now = False
+        self.count += 1
+        if self._raise_at is not None and self.count >= self._raise_at:
+            self._raise_at = None
             raise Stopped(self.signum)
 
     @staticmethod
@@ -80,10 +90,13 @@ class StopRequests:
             raise Stopped(self.signum)
 
     @contextmanager
-    def interruptible(self) -> Iterator[None]:
-        self.check()
-        self._raise_now = True
+    def interruptible(self, signals: int = 1) -> Iterator[None]:
+        """A block that the ``signals``-th signal (counted since the run started) stops at once;
+        ``signals=1``: the block starts only if no stop was asked for."""
+        if signals == 1:
+            self.check()
+        self._raise_at = max(signals, self.count + 1)
         try:
             yield
         finally:
-            self._raise_now = False
+            self._raise_at = None

@@ -293,7 +293,7 @@ def test_a_best_response_to_a_mixture_meets_a_member_drawn_per_episode(ray_insta
             saved = load_module(mixed_run / member.checkpoint).get_state()
             state = coordinator.algo.get_module(member.name).get_state()
             assert all(np.array_equal(state[key], saved[key]) for key in saved)
-        plan, weights = coordinator.match_plan()
+        plan, weights = coordinator.league.match_plan(coordinator.state.phase, coordinator.records([]), seed=0)
         assert plan.opponents == [[p.modules() for p in teams.members]] and plan.probabilities == [list(teams.weights)]
         # The plan draws a member per episode, fixed by the episode's id, in the mixture's proportions
         # (4,000 episodes: within 5 standard errors, 0.039, of 5/9).

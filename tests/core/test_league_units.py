@@ -8,7 +8,7 @@ from league.config import CONFIG_DIR, ConfigError, RunConfig, load_config
 from league.analysis.statistics import wilson_interval
 from envs.agents import Outcome
 from league.core.payoff import ATTACKER_WINS, OutcomeCount, aggregate, attacker_won, elo_ratings, player_record, record_against, win_rate, wins_of
-from league.core.players import Player
+from league.core.players import NewPlayer, Player
 from league.core.pfsp import pfsp_probabilities, with_scripted_share
 from league.core.match_plan import MatchPlan
 from league.rllib.bridge import learner_spec
@@ -287,15 +287,15 @@ def test_attacker_critic_is_local(modules):
 def test_rollback_forgets_later_iterations(tmp_path):
     store = LeagueStore(tmp_path, create=True)
     with store.transaction():
-        a = store.add_player(0, side="attacker", kind="scripted", version=0, scripted_attacker="lead_intercept")
-        t = store.add_player(0, side="team", kind="learner", version=0)
+        a = store.add_player(0, NewPlayer(side="attacker", kind="scripted", version=0, scripted_attacker="lead_intercept"))
+        t = store.add_player(0, NewPlayer(side="team", kind="learner", version=0))
     for iteration in (1, 2, 3):
         with store.transaction():
             store.record_outcomes(iteration, "training", [OutcomeCount(a.id, t.id, "captured", 2)])
             store.record_iteration(iteration, phase=0, learner_side="team", env_steps=iteration, episodes=2 * iteration,
                                    steps_per_second=1.0, wall_seconds=1.0)
             if iteration == 2:
-                store.add_player(iteration, side="team", kind="snapshot", version=1, parent=t.id)
+                store.add_player(iteration, NewPlayer(side="team", kind="snapshot", version=1, parent=t.id))
     store.rollback_after(1)
     assert store.iteration_count() == 1
     assert store.outcome_rows() == [OutcomeCount(a.id, t.id, "captured", 2)]
@@ -312,11 +312,11 @@ def test_reproduce_reads_the_paper_teams_test_games_not_the_dev_games(tmp_path):
     (tmp_path / RUN_CONFIG_FILE).write_text(yaml.safe_dump(RunConfig(name="x").model_dump(mode="json")))
     store = LeagueStore(tmp_path, create=True)
     with store.transaction():
-        straight = store.add_player(0, side="team", kind="scripted", version=0, scripted_targeter="straight",
-                                    scripted_defender="pure_pursuit")
-        paper = store.add_player(0, side="team", kind="scripted", version=0, scripted_targeter="avoid_attacker",
-                                 scripted_defender="pure_pursuit")
-        v1 = store.add_player(0, side="attacker", kind="snapshot", version=1, reward_method=2)
+        straight = store.add_player(0, NewPlayer(side="team", kind="scripted", version=0, scripted_targeter="straight",
+                                    scripted_defender="pure_pursuit"))
+        paper = store.add_player(0, NewPlayer(side="team", kind="scripted", version=0, scripted_targeter="avoid_attacker",
+                                 scripted_defender="pure_pursuit"))
+        v1 = store.add_player(0, NewPlayer(side="attacker", kind="snapshot", version=1, reward_method=2))
     stats = dict(games=4, attacker_return_1=0.0, attacker_return_2=0.0, attacker_return_3=0.0, targeter_return=0.0,
                  defender_return=0.0, mean_steps=9.0)
     store.record_evaluation(2, [OutcomeCount(v1.id, paper.id, "captured", 1), OutcomeCount(v1.id, paper.id, "terminal_reached", 3)])

@@ -423,11 +423,12 @@ def test_a_keyboard_interrupt_from_inside_a_library_is_a_stop_not_a_traceback(ti
         def train(self, progress, stop):
             pass
 
-        def finish(self, progress, stop):
-            raise KeyboardInterrupt
+    def finish(coordinator, progress, stop):
+        raise KeyboardInterrupt
 
     run_dir = tmp_path / "new"
     monkeypatch.setattr(run, "start_ray", lambda *args: None)
+    monkeypatch.setattr(run, "finish", finish)
     monkeypatch.setattr(run, "new_run", lambda config, directory, stop: Coordinator(directory))
     try:
         code = run.main(["--config", tiny_config(), "--run-dir", str(run_dir)])

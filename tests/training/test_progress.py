@@ -3,7 +3,8 @@
 import io
 
 from league.core.schedule import PhaseState
-from league.training.progress import IterationTiming, ProgressReporter
+from league.training.progress import ProgressReporter
+from league.training.records import IterationRecord, IterationTiming, TrainResult
 
 
 class Recorder:
@@ -26,8 +27,12 @@ def test_scalars_are_written_against_the_runs_env_steps(tmp_path):
     progress.writer = recorder = Recorder()
     phase = PhaseState(index=0, side="attacker", start_iteration=0, episodes=10, learner_wins=4)
     for iteration, env_steps in ((1, 8192), (2, 16384)):
-        progress.iteration(iteration, env_steps, 3, {}, {}, phase, 8192, IterationTiming(sampling=0.5, learning=0.5, evaluation=0.0),
-                           [], [])
+        train = TrainResult([], env_steps, {}, {}, {}, seconds=1.0, learning_seconds=0.5)
+        progress.iteration(IterationRecord(
+            iteration, phase, train, steps=8192, env_steps=env_steps, episodes=10, snapshots=[], snapshot_names=[],
+            evaluation=[], curves=None, weights={}, timing=IterationTiming(sampling=0.5, learning=0.5, evaluation=0.0),
+            league_size=3, checkpoint=None,
+        ))
     steps = {tag: [step for t, _, step in recorder.scalars if t == tag] for tag, _, _ in recorder.scalars}
     assert steps["perf/sps"] == [8192, 16384]
     assert steps["league/attacker_phase_win_rate"] == [8192, 16384]

@@ -18,7 +18,7 @@ from league.config import load_config
 from league.core.payoff import aggregate
 from league.rllib import bridge
 from league.state.store import LeagueStore
-from league.training.coordinator import Coordinator
+from league.training import lifecycle
 from league.training.progress import ProgressReporter
 
 TINY = """
@@ -56,7 +56,7 @@ def psro_run(ray_instance, tmp_path_factory):
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(bridge, "set_match_plan", recording)
         store = LeagueStore(run_dir, create=True)
-        coordinator = holder["coordinator"] = Coordinator.start(run, run_dir, store)
+        coordinator = holder["coordinator"] = lifecycle.start(run, run_dir, store)
         coordinator.train(ProgressReporter(run_dir, 3, stream=io.StringIO()))
         coordinator.algo.stop()
     yield store, plans, run_dir
