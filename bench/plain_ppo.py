@@ -19,12 +19,12 @@ import numpy as np
 import torch
 from torch import nn
 
-from envs.agents import Outcome
 from envs.vector_env import TargetDefenseVectorEnv
 from league.config import RunConfig, load_config
 from league.rllib.modules import INITIAL_LOG_STD, mlp
 from league.rollout.games import Rollout, ScriptedOnState
 from league.rollout.train_batch import gae, standardized
+from league.rollout.training_reward import ended_steps, method_rewards
 
 KL_COEFF, KL_TARGET = 0.2, 0.01  # RLlib's PPO defaults, which the league's PPO keeps
 
@@ -70,8 +70,8 @@ def train_plain(run: RunConfig, env_steps: int) -> dict:
         )
         observations = played.observations["attacker"]  # rows + 1: the last one is bootstrapped
         actions, logps = played.actions["attacker"], played.outputs[("attacker", "logp")].astype(np.float64)
-        rewards = played.attacker_rewards[:, :, method - 1]
-        ended = (played.outcome != int(Outcome.RUNNING)).astype(np.float64)
+        rewards = method_rewards(played.attacker_rewards, method)  # the game's reward, no training extras
+        ended = ended_steps(played.outcome)
         with torch.no_grad():
             values = agent.vf(torch.from_numpy(observations)).squeeze(-1).numpy().astype(np.float64)
         advantages, targets = gae(rewards, values[:-1], values[-1], ended, ppo.gamma, ppo.lambda_)

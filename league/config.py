@@ -60,7 +60,7 @@ class PPOSettings(Strict):
     """GAE ``lambda`` of the team learner; ``None``: ``lambda_``. Same sampler caveat."""
     targeter_shaping: float = Field(0.0, ge=0)
     """``k``: in training, T's rewards get the potential-based shaping ``gamma Phi(s') - Phi(s)``
-    with ``Phi = -k |T ter|`` (``league.rollout.train_batch.potential_shaping``): ``k`` per unit T
+    with ``Phi = -k |T ter|`` (``league.rollout.training_reward``): ``k`` per unit T
     closes on the terminal, paid back when the game ends, so it changes no policy's ranking.
     Without it T never found the terminal sphere (radius ``v_T``, one step of T) by exploring,
     and trained teams won only by D's interceptions (docs/results/learning.md, "The team's learning"). At

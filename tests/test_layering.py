@@ -3,9 +3,10 @@
 SQL only in the store; no import cycles among league's modules or packages; no module
 imports a command (the modules at the top of ``league/`` with a ``__main__`` block);
 ``league/core/`` without Ray or torch; the league's decision module (``league/core/league.py``) without
-the store, Ray or RLlib; ``ray.rllib`` only in ``league/rllib/``; who won
-only in ``league/core/payoff.py``; RLlib's ``model_config`` read only by ``league/rllib/module_settings.py``; the
-README's layout table lists the packages, docs/architecture.md's every module.
+the store, Ray or RLlib; ``ray.rllib`` only in ``league/rllib/``; who won only in
+``league/core/payoff.py``; training rewards assembled only in ``league/rollout/``; RLlib's ``model_config``
+read only by ``league/rllib/module_settings.py``; the README's layout table lists the packages,
+docs/architecture.md's every module.
 
 Each rule is a scan of the source files (``envs/``, ``league/``, ``bench/``) and a test
 that the scan finds a planted violation, so a rule that stopped matching would fail.
@@ -313,6 +314,52 @@ def test_the_who_won_scan_finds_the_old_copies(tmp_path):
     assert [v.split(":")[0] for v in who_won_copies(root)] == [
         "bench/league_quality.py", "league/analysis/generations.py", "league/curves.py", "league/exploit.py",
         "league/replay.py",
+    ]
+
+
+# ---------------------------------------------------------------- training rewards
+# How a learner is paid in training, assembled by hand: the game's reward functions imported,
+# an attacker's reward picked out of the env's three by its method, the win reward added, the
+# team's rewards summed, a shaping potential or its distances, advantages by GAE's recursion.
+TRAINING_REWARD = re.compile(
+    r"\bfrom\s+envs\.rewards\b|\bimport\s+envs\.rewards\b|\bfrom\s+envs\s+import\b[^\n]*\brewards\b"
+    r"|\[[^\]\n]*\bmethod\s*-\s*1\s*\]|\bwin_reward\s*\*"
+    r"|rewards\[[\"']targeter[\"']\][^\n]*\+[^\n]*rewards\[[\"']defender[\"']\]"
+    r"|\bpotential_shaping\b|\bSHAPED_DISTANCE\b|\b(terminal|interception)_distance\b|\bdef\s+gae\b"
+)
+TRAINING_REWARD_HOME = "league/rollout/"
+
+
+def training_reward_copies(root: Path) -> list[str]:
+    """Lines that assemble a training reward outside ``league/rollout/`` and ``envs/`` (the game's rules)."""
+    return [v for v in violations(root, TRAINING_REWARD, set()) if not v.startswith(("envs/", TRAINING_REWARD_HOME))]
+
+
+def test_training_rewards_only_in_the_rollout():
+    assert training_reward_copies(ROOT) == []
+
+
+def test_the_training_reward_scan_finds_the_old_assembly(tmp_path):
+    # The lines as they stood in the RLlib adapter before `league/rollout/training_reward.py`.
+    root = plant(tmp_path, {
+        "league/rllib/env_runner.py":
+            'SHAPED_DISTANCE = {"targeter": terminal_distance, "defender": interception_distance}\n'
+            "rewards = rows.attacker_rewards[:t, :, method - 1]\n"
+            "rewards = rewards + win_reward * np.where(attacker_won_games(rows.outcome[:t]), 1.0, -1.0) * ended\n"
+            'rewards = rows.rewards["targeter"][:t] + rows.rewards["defender"][:t]\n'
+            "rewards = rewards + potential_shaping(-shaping * distance, ended, gamma)\n",
+        "league/rllib/callbacks.py": 'compat.overwrite_rewards(attacker, [info["attacker_rewards"][method - 1] for info in infos])\n',
+        "league/rllib/modules.py": "from envs.rewards import attacker_method2\n",
+        "league/training/coordinator.py": "from envs import agents, rewards\n",
+        "bench/plain_ppo.py": "def gae(rewards, values):\n",
+        "league/rollout/training_reward.py": "rewards = rewards + pay.attacker_win_reward * won * ended\n",  # its home
+        "envs/core.py": "from envs import rewards\n",  # the game's own rules
+        "league/rllib/bridge.py": "win_reward=run.ppo.win_reward(reward_method)\n",  # a setting passed on: fine
+    })
+    assert [":".join(v.split(":")[:2]) for v in training_reward_copies(root)] == [
+        "bench/plain_ppo.py:1", "league/rllib/callbacks.py:1", "league/rllib/env_runner.py:1",
+        "league/rllib/env_runner.py:2", "league/rllib/env_runner.py:3", "league/rllib/env_runner.py:4",
+        "league/rllib/env_runner.py:5", "league/rllib/modules.py:1", "league/training/coordinator.py:1",
     ]
 
 

@@ -32,11 +32,13 @@ from league.core.match_plan import MatchPlan
 from league.core.players import Player
 from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
-from league.rllib.env_runner import OUTCOMES_KEY, SEPARATOR, BatchedEnvRunner, SeededEnvRunner, seed_iteration
+from league.rllib.env_runner import BatchedEnvRunner, SeededEnvRunner, seed_iteration
 from league.rllib import compat
 from league.rllib.learner import LeaguePPOLearner
 from league.rllib.module_settings import ActorCriticSettings, ScriptedSettings
 from league.rllib.modules import ActorCriticModule, ScriptedModule
+from league.rllib.runner_metrics import OUTCOMES_KEY, SEPARATOR
+from league.rollout.training_reward import TrainingPay
 from ray.rllib.algorithms.algorithm import Algorithm
 from ray.rllib.algorithms.ppo import PPO, PPOConfig
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
@@ -72,9 +74,8 @@ def actor_inputs(run: RunConfig, agent: str) -> int:
 
 
 def learner_settings(run: RunConfig, side: str, reward_method: int | None = None) -> ActorCriticSettings:
-    """What the ``side`` learner's module is built with and how it is paid."""
+    """What the ``side`` learner's module is built with and how it is paid (``TrainingPay.of``)."""
     agent = "attacker" if side == "attacker" else "targeter"
-    gamma, lambda_ = run.ppo.discount(side)
     team = side == "team"
     return ActorCriticSettings(
         actor_inputs=actor_inputs(run, agent),
@@ -84,14 +85,8 @@ def learner_settings(run: RunConfig, side: str, reward_method: int | None = None
         heading_cosines=run.ppo.attacker_heading_cosines and not team,
         game=run.game,
         bf16=run.ppo.bf16,
-        reward_method=reward_method,
-        gamma=gamma,
-        lambda_=lambda_,
-        targeter_shaping=run.ppo.targeter_shaping if team else 0.0,
-        defender_shaping=run.ppo.defender_shaping if team else 0.0,
-        attacker_win_reward=0.0 if team else run.ppo.win_reward(reward_method),
-        team_reward=run.ppo.team_reward if team else "own",
         explore_when_frozen=run.league.frozen_players_explore,
+        **TrainingPay.of(run, side, reward_method).model_dump(),
     )
 
 

@@ -5,10 +5,13 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from envs.agents import AGENTS
 from league.rllib import compat
-from league.rllib.env_runner import log_outcome
 from league.rllib.modules import ActorCriticModule
+from league.rllib.runner_metrics import log_outcome
+from league.rollout.training_reward import method_rewards
 from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.connectors.connector_v2 import ConnectorV2
 
@@ -17,7 +20,8 @@ class AttackerRewardByMethod(ConnectorV2):
     """Learner connector: pays each attacker module the reward of its own method.
 
     The env reports A's reward under all three methods in its info
-    (``attacker_rewards``); this lets attackers of different methods share one league.
+    (``attacker_rewards``); this lets attackers of different methods share one league. The
+    batched and standard samplers' only training reward (``league.rollout.training_reward``).
     It runs after PPO's one-timestep extension, whose phantom last reward stays as is.
     """
 
@@ -34,7 +38,8 @@ class AttackerRewardByMethod(ConnectorV2):
             if not method or real_steps <= 0:
                 continue
             infos = attacker.get_infos(slice(1, real_steps + 1))
-            compat.overwrite_rewards(attacker, [info["attacker_rewards"][method - 1] for info in infos])
+            by_method = np.array([info["attacker_rewards"] for info in infos])
+            compat.overwrite_rewards(attacker, method_rewards(by_method, method).tolist())
         return batch
 
 

@@ -1,96 +1,63 @@
-"""The fast sampling path: an RLlib EnvRunner that steps all of its games as arrays.
+"""The league's env runners: RLlib ``EnvRunner``s that step all of their games as arrays.
 
 RLlib's ``MultiAgentEnvRunner`` steps each sub-environment in a Python loop and runs
 its connector pipelines on every step. ``BatchedEnvRunner`` keeps everything else of it
 (the modules, weight and state sync, checkpoints, metrics, fault tolerance) and replaces
-``sample()``: the games are played by ``league.rollout.games`` (one step of all N games is one
+its sampling: the games are played by ``league.rollout.games`` (one step of all N games is one
 call of ``envs.vector_env`` and one forward pass per module over every (game, agent) it
-plays); this class turns the rollout's rows into what RLlib wants. Episodes reach the Learner as
-``MultiAgentEpisode`` chunks built from the arrays, with the observations, actions,
-rewards, infos and model outputs of the standard path (``tests/rllib/test_batched_sampler.py``
-plays both side by side).
+plays). What the rows become depends on the sampler:
 
-Differences, all for speed:
+* ``sample_training_data`` is the fast path (``resources.sampler: fast``): no episode objects
+  at all; PPO's columns, with advantages and value targets by GAE over the arrays of what each
+  learner is paid (``league.rollout.train_batch``, ``league.rollout.training_reward``), go
+  straight to the Learner (``LeaguePPO``). Finished games log their metrics and outcome
+  (``runner_metrics``); no episode callback is called. Scripted players act on the games'
+  exact state (as in evaluation), not on the float32 global state that their RLModule decodes
+  on the other paths.
+* ``sample`` is RLlib's (``resources.sampler: batched``): the rows become ``MultiAgentEpisode``
+  chunks (``episode_chunks``) that RLlib's learner connectors turn into the batch.
 
-* Episodes carry only the agents whose module is trained (the learning side); the
-  Learner would drop the steps of scripted players and frozen snapshots anyway.
-  ``episode.module_for`` still names every agent's module. (An episode in which no
-  module is trained, as at a phase switch, carries all three agents.)
+Differences from RLlib's runner, all for speed (and ``episode_chunks``' own):
+
 * Of the per-episode metrics (windows of the last 100 episodes) only the episodes
-  that can still be in a window are logged at the end of each ``sample()`` call.
+  that can still be in a window are logged at the end of each play.
 * The env-to-module and module-to-env connector pipelines are not run. The league uses
   RLlib's defaults, which only batch, sample from the action distribution and unbatch;
   a config with connectors of its own is refused.
-* Of the episode callbacks only ``on_episode_end`` is called (and ``on_sample_end``).
 * The agent-to-module mapping is asked with an ``EpisodeRef`` (the episode's id, all
   that the league's ``MatchPlan`` reads), once per agent when a game starts.
 
-``sample_training_data`` is the fast path (``resources.sampler: fast``): the same play,
-but no episode objects at all; PPO's columns, with advantages and value targets by GAE
-over the arrays (``league.rollout.train_batch``), go straight to the Learner (``LeaguePPO``).
-Finished games still log their metrics and outcome; no episode callback is called.
-Scripted players act on the games' exact state (as in evaluation), not on the float32
-global state that their RLModule decodes on the other paths.
+``SeededEnvRunner`` is RLlib's own runner (``resources.sampler: standard``) with the run's seeds.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import pickle
 import random
 import time
-from collections import Counter, defaultdict
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 
-from envs.agents import AGENTS, Outcome
-from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal_distance
+from envs.agents import AGENTS
 from envs.vector_env import TargetDefenseVectorEnv
-from league.core.payoff import attacker_won_games
 from league.core.seeding import Purpose, stream, stream_seed
 from league.rllib import compat
+from league.rllib.episode_chunks import EpisodeChunks
 from league.rllib.modules import ActorCriticModule, ScriptedModule
+from league.rllib.runner_metrics import FinishedGames, log_sampled_steps, module_step_counts
 from league.rollout.games import Policy, Rollout, Rows, ScriptedOnState
-from league.rollout.train_batch import gae, potential_shaping
+from league.rollout.train_batch import slot_batch
 from ray.rllib.callbacks.utils import make_callback
 from ray.rllib.core.columns import Columns
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 from ray.rllib.env.multi_agent_episode import MultiAgentEpisode
-from ray.rllib.env.single_agent_episode import SingleAgentEpisode
 from ray.rllib.evaluation.postprocessing import Postprocessing
-from ray.rllib.utils.metrics import (
-    EPISODE_AGENT_RETURN_MEAN,
-    EPISODE_AGENT_STEPS,
-    EPISODE_DURATION_SEC_MEAN,
-    EPISODE_LEN_MAX,
-    EPISODE_LEN_MEAN,
-    EPISODE_LEN_MIN,
-    EPISODE_MODULE_RETURN_MEAN,
-    EPISODE_RETURN_MAX,
-    EPISODE_RETURN_MEAN,
-    EPISODE_RETURN_MIN,
-    NUM_AGENT_STEPS_SAMPLED,
-    NUM_AGENT_STEPS_SAMPLED_LIFETIME,
-    NUM_ENV_STEPS_SAMPLED,
-    NUM_ENV_STEPS_SAMPLED_LIFETIME,
-    NUM_EPISODES,
-    NUM_EPISODES_LIFETIME,
-    NUM_MODULE_STEPS_SAMPLED,
-    NUM_MODULE_STEPS_SAMPLED_LIFETIME,
-    RLMODULE_INFERENCE_TIMER,
-    SAMPLE_TIMER,
-    WEIGHTS_SEQ_NO,
-)
-
-# The distance each team agent's potential-based shaping measures (T: to the terminal, D: to A).
-SHAPED_DISTANCE = {"targeter": terminal_distance, "defender": interception_distance}
-
-RESET_INFOS: dict[str, dict] = {agent: {} for agent in AGENTS}  # what a reset returns as infos
-OUTCOMES_KEY = "league_outcomes"  # metrics key of the finished games by modules and outcome
-SEPARATOR = "|"
+from ray.rllib.utils.metrics import RLMODULE_INFERENCE_TIMER, SAMPLE_TIMER, WEIGHTS_SEQ_NO
 
 
 @dataclass(frozen=True)
@@ -114,18 +81,16 @@ class SeededEnvRunner(MultiAgentEnvRunner):
 
 
 class BatchedEnvRunner(SeededEnvRunner):
-    """Samples ``num_envs_per_env_runner`` games of ``envs.vector_env`` at once.
-
-    As the standard runner does (``batch_mode="truncate_episodes"``), episodes still
-    running at the end of a ``sample()`` call are returned as chunks and continued in
-    the next call.
-    """
+    """Samples ``num_envs_per_env_runner`` games of ``envs.vector_env`` at once: PPO's training
+    data (``sample_training_data``, the fast path) or RLlib episodes (``sample``)."""
 
     def __init__(self, config: Any, **kwargs: Any):
         if compat.has_custom_connectors(config):
             raise ValueError("BatchedEnvRunner runs RLlib's default connectors only: use the standard sampler")
         self.games: TargetDefenseVectorEnv | None = None
         self.rollout: Rollout | None = None
+        self.chunks = EpisodeChunks(self)
+        self.finished = FinishedGames()
         self._needs_seeded_reset = True
         self._restart_games = False  # `restart_games`: the next sample starts every game anew
         super().__init__(config=config, **kwargs)
@@ -146,7 +111,7 @@ class BatchedEnvRunner(SeededEnvRunner):
             new_episode_id=self._new_episode_id,
         )
         env = self.env.envs[0].unwrapped
-        self._spaces = (dict(env.observation_spaces), dict(env.action_spaces))
+        self.agent_spaces = (dict(env.observation_spaces), dict(env.action_spaces))
         # As the standard runner: a new env, or a sample by episode count, starts every game
         # anew from the seed; `force_reset` starts them anew where their generators are.
         self._needs_seeded_reset = True
@@ -184,7 +149,7 @@ class BatchedEnvRunner(SeededEnvRunner):
         if rollout is not None:
             state["games"] = self.games
             state["rollout"] = {k: getattr(rollout, k) for k in ("module_ids", "modules", "episode_ids", "env_t", "returns", "observations")}
-            state["chunks"] = {k: getattr(self, k) for k in ("_first_infos", "_earlier_chunks") if hasattr(self, k)}
+            state["chunks"] = self.chunks.state()
         return pickle.dumps(state)
 
     def restore_games(self, data: bytes) -> None:
@@ -198,9 +163,8 @@ class BatchedEnvRunner(SeededEnvRunner):
             for key, value in state["rollout"].items():
                 setattr(self.rollout, key, value)
             self.rollout.started[:] = time.perf_counter()  # wall clock: the episodes' durations restart
-            self._finished, self._outcomes = [], Counter()
-            for key, value in state["chunks"].items():
-                setattr(self, key, value)
+            self.finished = FinishedGames()
+            self.chunks.restore(state["chunks"])
 
     # ------------------------------------------------------------------ sample
     def sample(
@@ -212,6 +176,7 @@ class BatchedEnvRunner(SeededEnvRunner):
         random_actions: bool = False,
         force_reset: bool = False,
     ) -> list[MultiAgentEpisode]:
+        """RLlib's sampling: the finished episodes and the running ones' chunks (``episode_chunks``)."""
         if self.games is None:
             raise ValueError(f"{self} has no env: it is a local runner beside remote ones")
         if num_timesteps is not None and num_episodes is not None:
@@ -231,7 +196,7 @@ class BatchedEnvRunner(SeededEnvRunner):
                 if num_timesteps is None:
                     num_timesteps = self.config.get_rollout_fragment_length(self.worker_index) * self.num_envs
                 episodes, rows, t = self._play(math.ceil(num_timesteps / self.num_envs), None, explore, random_actions)
-                episodes += self._ongoing_chunks(rows, t)
+                episodes += self.chunks.ongoing(rows, t)
         make_callback(
             "on_sample_end",
             callbacks_objects=compat.env_runner_callbacks(self),
@@ -258,13 +223,36 @@ class BatchedEnvRunner(SeededEnvRunner):
             self.rollout.env_t += t - rows.chunk_start  # the unfinished episodes go on in the next call
             return self._training_data(rows, t)
 
+    def _training_data(self, rows: Rows, t: int) -> dict[str, dict[str, np.ndarray]]:
+        """Every trained module's PPO columns from rows ``0..t`` (see ``sample_training_data``)."""
+        data: dict[str, dict[str, list[np.ndarray]]] = {}
+        for index, module_id in enumerate(self.rollout.module_ids):
+            if not self.is_trained(module_id):
+                continue
+            module = self.module[module_id]
+            for agent in AGENTS:
+                # `module.settings` is the `TrainingPay` of how its learner is paid.
+                values_of = functools.partial(_values, module)
+                batch = slot_batch(rows, t, index, agent, module.settings, values_of, self.games.core.config)
+                if batch is None:
+                    continue
+                played = batch.played
+                columns = {
+                    Columns.OBS: rows.observations[agent][:t][played],
+                    Columns.ACTIONS: rows.actions[agent][:t][played],
+                    Columns.ACTION_LOGP: rows.outputs[(agent, Columns.ACTION_LOGP)][:t][played],
+                    Columns.ACTION_DIST_INPUTS: rows.outputs[(agent, Columns.ACTION_DIST_INPUTS)][:t][played],
+                    Postprocessing.ADVANTAGES: batch.advantages,
+                    Postprocessing.VALUE_TARGETS: batch.value_targets,
+                }
+                for key, value in columns.items():
+                    data.setdefault(module_id, {}).setdefault(key, []).append(value)
+        return {module_id: {k: np.concatenate(v) for k, v in columns.items()} for module_id, columns in data.items()}
+
     # ------------------------------------------------------------------ games
     def _reset_all(self) -> None:
-        n = self.num_envs
-        self._first_infos: list[dict] = [RESET_INFOS] * n  # infos of each chunk's first observation
-        self._earlier_chunks: dict[str, list[MultiAgentEpisode]] = defaultdict(list)
-        self._finished: list[tuple] = []  # (length, agent returns, module returns, seconds) per episode
-        self._outcomes: Counter[tuple[tuple[str, ...], str]] = Counter()  # finished games by (modules, outcome)
+        self.chunks.reset(self.num_envs)
+        self.finished = FinishedGames()
         self.rollout.reset(seed=compat.env_runner_seed(self) if self._needs_seeded_reset else None)
         self._needs_seeded_reset = self._restart_games = False
 
@@ -280,10 +268,10 @@ class BatchedEnvRunner(SeededEnvRunner):
 
         def game_ended(rows: Rows, game: int, start: int, t: int, outcome: int) -> None:
             if episodes:
-                done_episodes.append(self._chunk(rows, game, start, t, ended=True))
+                done_episodes.append(self.chunks.finished(rows, game, start, t))
             else:
-                self._game_ended(game, int(self.rollout.env_t[game]) + t - start, outcome)
-            self._first_infos[game] = RESET_INFOS
+                self.finished.add(self.rollout, game, int(self.rollout.env_t[game]) + t - start, outcome)
+                self.chunks.restarted(game)
 
         rows, t, num_done, module_steps = self.rollout.play(
             num_steps,
@@ -292,11 +280,11 @@ class BatchedEnvRunner(SeededEnvRunner):
             on_game_end=game_ended,
             observed=(lambda: AGENTS) if episodes else self._agents_that_observe,
         )
-        self._count_steps(self.num_envs * t, num_done, module_steps)
-        self._log_finished_episodes()
-        for (modules, outcome), count in self._outcomes.items():
-            log_outcome(self.metrics, list(modules), outcome, count)
-        self._outcomes.clear()
+        env_steps = self.num_envs * t
+        if env_steps:
+            compat.count_sampled_env_steps(self, env_steps)
+        log_sampled_steps(self.metrics, env_steps, num_done, module_step_counts(self.rollout, module_steps))
+        self.finished.log(self.metrics, self.config.metrics_num_episodes_for_smoothing, self.config.num_env_runners)
         return done_episodes, rows, t
 
     def _agents_that_observe(self) -> tuple[str, ...]:
@@ -304,18 +292,6 @@ class BatchedEnvRunner(SeededEnvRunner):
         observation for the others (scripted players act on the games' state)."""
         scripted = np.array([isinstance(self.module[m], ScriptedModule) for m in self.rollout.module_ids])
         return tuple(agent for i, agent in enumerate(AGENTS) if not scripted[self.rollout.modules[:, i]].all())
-
-    def _ongoing_chunks(self, rows: Rows, t: int) -> list[MultiAgentEpisode]:
-        """The episodes still running after row ``t``, as chunks that the next call continues."""
-        ongoing = []
-        for game in np.flatnonzero(rows.chunk_start < t):
-            start = rows.chunk_start[game]
-            chunk = self._chunk(rows, game, start, t, ended=False)
-            self._earlier_chunks[chunk.id_].append(chunk)
-            self.rollout.env_t[game] += t - start
-            self._first_infos[game] = {agent: infos[0] for agent, infos in rows.infos(game, t - 1, t).items()}
-            ongoing.append(chunk)
-        return ongoing
 
     def _act(self, rows: Rows, t: int, explore: bool, random_actions: bool, on_core: bool) -> dict[str, np.ndarray]:
         """Every agent's action in every game: one forward pass per module.
@@ -325,199 +301,26 @@ class BatchedEnvRunner(SeededEnvRunner):
         """
         if random_actions:
             actions = {}
-            for agent, space in self._spaces[1].items():
+            for agent, space in self.agent_spaces[1].items():
                 actions[agent] = np.random.uniform(space.low, space.high, size=(self.num_envs, *space.shape)).astype(np.float32)
             return actions
 
         def policy_of(module_id: str) -> Policy:
             module = self.module[module_id]
-            if on_core and isinstance(module, ScriptedModule):
-                return ScriptedOnState(module.name)
-
             # `LeagueSettings.frozen_players_explore`: a frozen snapshot may play its mean (a scripted
             # player acts alike either way).
             frozen_explores = module.settings.explore_when_frozen if isinstance(module, ActorCriticModule) else True
-            explores = explore and (frozen_explores or self._is_trained(module_id))
-
-            def forward(obs: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-                outputs = _forward(module, torch.from_numpy(obs), explores)
-                return outputs.pop(Columns.ACTIONS), outputs
-
-            return forward
+            return module_policy(module, explore and (frozen_explores or self.is_trained(module_id)), on_core)
 
         with self.metrics.log_time(RLMODULE_INFERENCE_TIMER), torch.no_grad():
             return self.rollout.act_by_module(rows, t, policy_of)
 
-    # ------------------------------------------------------------------ episodes
-    def _chunk(self, rows: Rows, game: int, start: int, end: int, ended: bool) -> MultiAgentEpisode:
-        """Rows ``start..end`` of ``game`` as a ``MultiAgentEpisode`` chunk of numpy data."""
-        episode_id, env_t, length = self.rollout.episode_ids[game], int(self.rollout.env_t[game]), end - start
-        modules = {agent: self.rollout.module_ids[i] for agent, i in zip(AGENTS, self.rollout.modules[game])}
-        agents = self._learning_agents(modules)
-        infos = rows.infos(game, start, end, agents)
-        observation_spaces, action_spaces = self._spaces
-        agent_episodes = {}
-        for agent in agents:
-            keys = rows.output_keys.get(modules[agent], ())
-            outputs = {key: rows.outputs[(agent, key)][start:end, game].copy() for key in keys}
-            outputs[WEIGHTS_SEQ_NO] = np.full(length, compat.weights_seq_no(self))
-            agent_episodes[agent] = SingleAgentEpisode(
-                id_=f"{episode_id}-{agent}",
-                agent_id=agent,
-                module_id=modules[agent],
-                multi_agent_episode_id=episode_id,
-                observations=rows.observations[agent][start : end + 1, game].copy(),
-                observation_space=observation_spaces[agent],
-                infos=[self._first_infos[game][agent], *infos[agent]],
-                actions=rows.actions[agent][start:end, game].copy(),
-                action_space=action_spaces[agent],
-                rewards=rows.rewards[agent][start:end, game].copy(),
-                terminated=ended,
-                extra_model_outputs=outputs,
-                t_started=env_t,
-                len_lookback_buffer=0,
-            )
-        episode = MultiAgentEpisode(
-            id_=episode_id,
-            observation_space=observation_spaces,
-            action_space=action_spaces,
-            agent_module_ids=modules,
-            agent_to_module_mapping_fn=self.config.policy_mapping_fn,
-            env_t_started=env_t,
-            len_lookback_buffer=0,
-        )
-        compat.lockstep_episode(episode, agent_episodes, env_t, length, terminated=ended)
-        if ended:
-            self._episode_ended(episode, game, env_t + length)
-        return episode
-
-    def _learning_agents(self, modules: dict[str, str]) -> tuple[str, ...]:
-        """Agents whose module is trained; all of them when none is (the Learner then drops the chunk)."""
-        trained = tuple(agent for agent in AGENTS if self._is_trained(modules[agent]))
-        return trained or AGENTS
-
-    def _is_trained(self, module_id: str) -> bool:
+    def is_trained(self, module_id: str) -> bool:
+        """Whether ``module_id`` is trained now (RLlib's ``policies_to_train``)."""
         to_train = self.config.policies_to_train
         if to_train is None:
             return True
         return to_train(module_id, None) if callable(to_train) else module_id in to_train
-
-    def _episode_ended(self, episode: MultiAgentEpisode, game: int, length: int) -> None:
-        returns = dict(zip(AGENTS, self.rollout.returns[game].tolist()))
-        module_returns: dict[str, float] = defaultdict(float)
-        for agent, index in zip(AGENTS, self.rollout.modules[game]):
-            module_returns[self.rollout.module_ids[index]] += returns[agent]
-        duration = time.perf_counter() - self.rollout.started[game]
-        self._finished.append((length, returns, dict(module_returns), duration))
-        make_callback(
-            "on_episode_end",
-            callbacks_objects=compat.env_runner_callbacks(self),
-            callbacks_functions=self.config.callbacks_on_episode_end,
-            kwargs=dict(
-                episode=episode,
-                prev_episode_chunks=self._earlier_chunks.pop(episode.id_, []),
-                env_runner=self,
-                metrics_logger=self.metrics,
-                env=self.env.unwrapped,
-                rl_module=self.module,
-                env_index=game,
-            ),
-        )
-
-    def _game_ended(self, game: int, length: int, outcome: int) -> None:
-        """A finished game's metrics and outcome, without an episode object (the fast path)."""
-        returns = dict(zip(AGENTS, self.rollout.returns[game].tolist()))
-        modules = [self.rollout.module_ids[index] for index in self.rollout.modules[game]]
-        module_returns: dict[str, float] = defaultdict(float)
-        for agent, module_id in zip(AGENTS, modules):
-            module_returns[module_id] += returns[agent]
-        self._finished.append((length, returns, dict(module_returns), time.perf_counter() - self.rollout.started[game]))
-        self._outcomes[(tuple(modules), Outcome(outcome).label)] += 1  # logged per key after the play: one call, not one a game
-
-    def _training_data(self, rows: Rows, t: int) -> dict[str, dict[str, np.ndarray]]:
-        """Every trained module's PPO columns from rows ``0..t`` (see ``sample_training_data``)."""
-        ended = (rows.outcome[:t] != int(Outcome.RUNNING)).astype(np.float64)
-        data: dict[str, dict[str, list[np.ndarray]]] = {}
-        for index, module_id in enumerate(self.rollout.module_ids):
-            if not self._is_trained(module_id):
-                continue
-            module = self.module[module_id]
-            settings = module.settings
-            method, gamma, lambda_ = settings.reward_method, settings.gamma, settings.lambda_
-            for i, agent in enumerate(AGENTS):
-                played = rows.modules[:t, :, i] == index  # (t, G)
-                if not played.any():
-                    continue
-                # The observation after the last row is bootstrapped by whoever played the last step.
-                observed = np.concatenate((played, played[-1:]))
-                obs = rows.observations[agent][: t + 1]
-                values = np.zeros(observed.shape)
-                with torch.no_grad():
-                    values[observed] = module.compute_values({Columns.OBS: torch.from_numpy(obs[observed])}).numpy()
-                if agent == "attacker" and method:
-                    rewards = rows.attacker_rewards[:t, :, method - 1]  # this module's reward method
-                    win_reward = settings.attacker_win_reward
-                    if win_reward:  # `PPOSettings.attacker_win_reward`: +R on the step A won a game, -R on one it lost
-                        rewards = rewards + win_reward * np.where(attacker_won_games(rows.outcome[:t]), 1.0, -1.0) * ended
-                elif settings.team_reward == "shared":  # `PPOSettings.team_reward`
-                    rewards = rows.rewards["targeter"][:t] + rows.rewards["defender"][:t]
-                else:
-                    rewards = rows.rewards[agent][:t]
-                shaping = settings.shaping_of(agent)  # `PPOSettings.targeter_shaping`, `defender_shaping`
-                if agent in SHAPED_DISTANCE and shaping:
-                    distance = SHAPED_DISTANCE[agent](self.games.core.config, obs[:, :, -GLOBAL_STATE_SIZE:])
-                    rewards = rewards + potential_shaping(-shaping * distance, ended, gamma)
-                advantages, targets = gae(rewards, values[:t], values[t], ended, gamma, lambda_)
-                columns = {
-                    Columns.OBS: obs[:t][played],
-                    Columns.ACTIONS: rows.actions[agent][:t][played],
-                    Columns.ACTION_LOGP: rows.outputs[(agent, Columns.ACTION_LOGP)][:t][played],
-                    Columns.ACTION_DIST_INPUTS: rows.outputs[(agent, Columns.ACTION_DIST_INPUTS)][:t][played],
-                    Postprocessing.ADVANTAGES: advantages[played].astype(np.float32),
-                    Postprocessing.VALUE_TARGETS: targets[played].astype(np.float32),
-                }
-                for key, value in columns.items():
-                    data.setdefault(module_id, {}).setdefault(key, []).append(value)
-        return {module_id: {k: np.concatenate(v) for k, v in columns.items()} for module_id, columns in data.items()}
-
-    def _log_finished_episodes(self) -> None:
-        """The standard runner's episode metrics, for the episodes a window can still hold."""
-        window = max(1, math.ceil(self.config.metrics_num_episodes_for_smoothing / (self.config.num_env_runners or 1)))
-        for length, returns, module_returns, duration in self._finished[-window:]:
-            total = sum(returns.values())
-            means = {
-                EPISODE_LEN_MEAN: length,
-                EPISODE_RETURN_MEAN: total,
-                EPISODE_DURATION_SEC_MEAN: duration,
-                **{(EPISODE_AGENT_RETURN_MEAN, agent): value for agent, value in returns.items()},
-                **{(EPISODE_AGENT_STEPS, agent): length for agent in AGENTS},
-                **{(EPISODE_MODULE_RETURN_MEAN, module): value for module, value in module_returns.items()},
-            }
-            for key, value in means.items():  # leaf by leaf: `log_dict` maps `tree` over the dict each call
-                self.metrics.log_value(key, value, window=window)
-            for reduce, (length_key, return_key) in (
-                ("min", (EPISODE_LEN_MIN, EPISODE_RETURN_MIN)),
-                ("max", (EPISODE_LEN_MAX, EPISODE_RETURN_MAX)),
-            ):
-                self.metrics.log_value(length_key, length, reduce=reduce, window=window)
-                self.metrics.log_value(return_key, total, reduce=reduce, window=window)
-        self._finished.clear()
-
-    def _count_steps(self, env_steps: int, episodes: int, module_steps: np.ndarray) -> None:
-        if env_steps:
-            compat.count_sampled_env_steps(self, env_steps)
-        self.metrics.log_value(NUM_ENV_STEPS_SAMPLED, env_steps, reduce="sum")
-        self.metrics.log_value(NUM_ENV_STEPS_SAMPLED_LIFETIME, env_steps, reduce="lifetime_sum", with_throughput=True)
-        self.metrics.log_value(NUM_EPISODES, episodes, reduce="sum")
-        self.metrics.log_value(NUM_EPISODES_LIFETIME, episodes, reduce="lifetime_sum")
-        for agent in AGENTS:
-            self.metrics.log_value((NUM_AGENT_STEPS_SAMPLED, agent), env_steps, reduce="sum")
-            self.metrics.log_value((NUM_AGENT_STEPS_SAMPLED_LIFETIME, agent), env_steps, reduce="lifetime_sum")
-        for index, steps in enumerate(module_steps.tolist()):
-            if steps:
-                module_id = self.rollout.module_ids[index]
-                self.metrics.log_value((NUM_MODULE_STEPS_SAMPLED, module_id), steps, reduce="sum")
-                self.metrics.log_value((NUM_MODULE_STEPS_SAMPLED_LIFETIME, module_id), steps, reduce="lifetime_sum")
 
 
 def seed_iteration(env_runner: Any, seed: int, iteration: int) -> None:
@@ -529,9 +332,23 @@ def seed_iteration(env_runner: Any, seed: int, iteration: int) -> None:
     random.seed(int(words[2]))
 
 
-def log_outcome(metrics: Any, modules: list[str], outcome: str, count: int = 1) -> None:
-    """Count ``count`` finished games by their (attacker, targeter, defender) modules and outcome."""
-    metrics.log_value((OUTCOMES_KEY, SEPARATOR.join(modules), outcome), count, reduce="sum")
+def module_policy(module: Any, explore: bool, on_core: bool) -> Policy:
+    """How ``module`` plays in the rollout: its forward pass, sampling if ``explore``; with
+    ``on_core``, a scripted module's player on the games' exact state."""
+    if on_core and isinstance(module, ScriptedModule):
+        return ScriptedOnState(module.name)
+
+    def forward(obs: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        outputs = _forward(module, torch.from_numpy(obs), explore)
+        return outputs.pop(Columns.ACTIONS), outputs
+
+    return forward
+
+
+def _values(module: Any, obs: np.ndarray) -> np.ndarray:
+    """The critic's values of ``obs``."""
+    with torch.no_grad():
+        return module.compute_values({Columns.OBS: torch.from_numpy(obs)}).numpy()
 
 
 def _forward(module: Any, obs: torch.Tensor, explore: bool) -> dict[str, np.ndarray]:

@@ -4,8 +4,9 @@ RLlib hands a module its settings as the ``model_config`` dict of its ``RLModule
 saves that dict with the module (checkpoints, ``players/``), so the dict stays at RLlib's
 boundary: ``league.rllib.bridge`` builds it with ``as_model_config()``, and a module's
 ``setup`` parses it back with ``from_model_config``, the only place that reads it by key.
-Every other reader reads ``module.settings`` by attribute, and a misspelt, missing or
-ill-typed key is an error naming it rather than a setting silently off.
+Every other reader reads ``module.settings`` by attribute (the fast sampler hands an
+``ActorCriticSettings`` to ``league.rollout`` as the ``TrainingPay`` it is), and a misspelt,
+missing or ill-typed key is an error naming it rather than a setting silently off.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from typing import Any, Literal, Self
 from pydantic import BaseModel, ConfigDict
 
 from envs.config import GameConfig
+from league.rollout.training_reward import TrainingPay
 
 # RLlib's own keys: PPO adds them to the model_config of every module the algorithm builds
 # (`PPOConfig._model_config_auto_includes`); our modules do not read them.
@@ -40,8 +42,9 @@ class _Settings(BaseModel):
         return self.model_dump()
 
 
-class ActorCriticSettings(_Settings):
-    """An ``ActorCriticModule``: its networks, and how its learner is paid and samples."""
+class ActorCriticSettings(_Settings, TrainingPay):
+    """An ``ActorCriticModule``: its networks, how it samples, and how its learner is paid
+    (``TrainingPay``'s fields, which ``league.rollout`` reads: flat in the saved dict, as before)."""
 
     actor_inputs: int
     """Length of the agent's own observation; the global state follows it in the policy input."""
@@ -57,26 +60,8 @@ class ActorCriticSettings(_Settings):
     """The game, for the prior's speeds and turn limits."""
     bf16: bool
     """Asked for; the learner computes in bf16 where the CPU has it natively (``PPOSettings.bf16``)."""
-    reward_method: int | None
-    """The attacker's reward method (Eq. 7, 8 or 9); ``None`` for the team."""
-    gamma: float
-    """The fast sampler's GAE discount (the team's may differ: ``PPOSettings.team_gamma``)."""
-    lambda_: float
-    """The fast sampler's GAE lambda."""
-    targeter_shaping: float
-    """``PPOSettings.targeter_shaping`` for the team, 0 for the attacker."""
-    defender_shaping: float
-    """``PPOSettings.defender_shaping`` for the team, 0 for the attacker."""
-    attacker_win_reward: float
-    """``PPOSettings.win_reward`` of the attacker's method, 0 for the team."""
-    team_reward: Literal["own", "shared"]
-    """``PPOSettings.team_reward`` for the team, ``own`` for the attacker."""
     explore_when_frozen: bool
     """A frozen copy samples its actions in training (``LeagueSettings.frozen_players_explore``)."""
-
-    def shaping_of(self, agent: str) -> float:
-        """The potential-based shaping coefficient of ``agent``'s rewards (0: none)."""
-        return {"targeter": self.targeter_shaping, "defender": self.defender_shaping}.get(agent, 0.0)
 
 
 class ScriptedSettings(_Settings):

@@ -1,7 +1,9 @@
 """PPO training data straight from rollout arrays, without episode objects (no Ray, no RLlib).
 
 A rollout of ``G`` games over ``T`` steps is held as arrays ``[t, game]`` (the fast
-sampler, ``league.rllib.env_runner``, fills them). For one module and one agent slot:
+sampler, ``league.rllib.env_runner``, fills them). ``slot_batch`` gives one module's rows as
+one agent (a slot): where it played, and its advantages and value targets by ``gae`` over
+the rewards it is paid (``league.rollout.training_reward``). For one module and one agent slot:
 
 | array      | shape     | meaning                                                        |
 | ---------- | --------- | -------------------------------------------------------------- |
@@ -26,9 +28,15 @@ Learner that slices the arrays itself (``league.rllib.learner.LeaguePPOLearner``
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 
 import numpy as np
+
+from envs.agents import AGENTS
+from envs.config import GameConfig
+from league.rollout.games import Rows
+from league.rollout.training_reward import TrainingPay, ended_steps, learner_rewards
 
 
 def gae(
@@ -47,16 +55,32 @@ def gae(
     return advantages, advantages + values
 
 
-def potential_shaping(potentials: np.ndarray, ended: np.ndarray, gamma: float) -> np.ndarray:
-    """Shaping rewards ``gamma * Phi(s') - Phi(s)`` ``(T, G)`` from ``potentials`` ``(T + 1, G)``.
+@dataclass(frozen=True)
+class SlotBatch:
+    """One module's rows as one agent: the steps ``(t, game)`` it played (``played``, ``(T, G)``),
+    and at those steps, in row-major order, its advantages (not yet standardised) and value targets."""
 
-    ``potentials[t]`` is ``Phi`` of the state before step ``t``; the last row is the state
-    after the last step. A game that ended on step ``t`` has potential 0 after it: that
-    makes the shaping sum over a game ``-Phi(s_0)`` whatever the agent does, so it changes
-    no policy's ranking (Ng, Harada and Russell 1999) while paying for progress at once.
-    """
-    following = np.where(ended.astype(bool), 0.0, potentials[1:])
-    return gamma * following - potentials[:-1]
+    played: np.ndarray
+    advantages: np.ndarray
+    value_targets: np.ndarray
+
+
+def slot_batch(
+    rows: Rows, t: int, module: int, agent: str, pay: TrainingPay, values_of: Callable[[np.ndarray], np.ndarray],
+    game: GameConfig,
+) -> SlotBatch | None:
+    """The PPO targets of module index ``module`` as ``agent`` over rows ``0..t - 1`` (``None``:
+    it did not play ``agent``), paid as ``pay``; ``values_of(observations)`` is its critic."""
+    played = rows.modules[:t, :, AGENTS.index(agent)] == module  # (t, G)
+    if not played.any():
+        return None
+    # The observation after the last row is bootstrapped by whoever played the last step.
+    observed = np.concatenate((played, played[-1:]))
+    values = np.zeros(observed.shape)
+    values[observed] = values_of(rows.observations[agent][: t + 1][observed])
+    rewards = learner_rewards(pay, agent, rows, t, game)
+    advantages, targets = gae(rewards, values[:t], values[t], ended_steps(rows.outcome[:t]), pay.gamma, pay.lambda_)
+    return SlotBatch(played, advantages[played].astype(np.float32), targets[played].astype(np.float32))
 
 
 def standardized(advantages: np.ndarray) -> np.ndarray:

@@ -14,7 +14,8 @@ from league.core.match_plan import MatchPlan
 from league.rllib import learner as learner_module
 from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO, training_batch
 from league.rllib.bridge import build_config, episode_outcomes, learner_settings, learner_spec, set_trainable
-from league.rollout.train_batch import gae, minibatch_rows, potential_shaping
+from league.rollout.train_batch import gae, minibatch_rows
+from league.rollout.training_reward import potential_shaping
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.connectors.learner import AddOneTsToEpisodesAndTruncate, GeneralAdvantageEstimation
 from ray.rllib.core.columns import Columns
@@ -102,7 +103,7 @@ def test_value_targets_and_advantages_are_those_of_rllibs_learner_connector(algo
     # One play of the games gives both: the episodes RLlib's pipeline takes, and the arrays.
     runner._reset_all()
     done, rows, t = runner._play(40, None, True, False)
-    episodes = done + runner._ongoing_chunks(rows, t)
+    episodes = done + runner.chunks.ongoing(rows, t)
     fast = runner._training_data(rows, t)
     assert set(fast) == {ATTACKER.name, TEAM.name}
     assert any(e.is_done for e in episodes) and any(not e.is_done for e in episodes)

@@ -53,6 +53,14 @@ def test_a_misspelt_setting_is_an_error_naming_it():
         spec.build()
 
 
+def test_a_misspelt_pay_setting_is_an_error_naming_it():
+    # The pay settings are `league.rollout.training_reward.TrainingPay`'s, flat in the same dict.
+    config = team_model_config()
+    config["targeter_shapng"] = config.pop("targeter_shaping")
+    with pytest.raises(ValueError, match=r"unknown key 'targeter_shapng', missing key 'targeter_shaping'"):
+        ActorCriticSettings.from_model_config(config)
+
+
 def test_a_missing_or_ill_typed_setting_is_an_error_naming_it():
     config = team_model_config()
     del config["bf16"]
