@@ -163,10 +163,11 @@ def cells(line: str) -> list[str]:
 
 
 def test_match_by_class_prints_the_rate_per_class_beside_the_overall_one(capsys):
-    assert match.main(["--episodes", "60", "--scenario", "defender_close", "--by-class"]) == 0
+    assert match.main(["--episodes", "60", "--scenario", "defender_close", "--games", "test", "--by-class"]) == 0
     lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "scenario 'defender_close', 60 fixed test episodes per row"
     config = GameConfig(scenario="defender_close")
-    positions = evaluation_scenarios("defender_close", 60)
+    positions = evaluation_scenarios("defender_close", 60, "test")
     classes = classify(positions, config)
     counts = class_counts(classes)
     assert counts[StartClass.A_CERTAIN] == 0 < counts[StartClass.T_RACE]
@@ -178,12 +179,13 @@ def test_match_by_class_prints_the_rate_per_class_beside_the_overall_one(capsys)
     assert len(rows) == len(PLAYERS["attacker"]) * len(PLAYERS["targeter"]) * len(PLAYERS["defender"])
     matchup = ("lead_intercept", "avoid_attacker", "pure_pursuit")
     wins = match.play(config, match.scripted_players(*matchup), positions).attacker_wins
-    by_class = win_rates_by_class(wins, classes)
+
+    def rate(won):
+        low, high = match.wilson_interval(int(won.sum()), len(won))
+        return f"{won.mean():.3f} [{low:.3f}, {high:.3f}]"
+
     assert rows[matchup] == [
-        f"{wins.mean():.3f}",
-        f"{by_class[StartClass.T_RACE]:.3f}",
-        "-",
-        f"{by_class[StartClass.CONTESTED]:.3f}",
+        rate(wins), rate(wins[classes == StartClass.T_RACE]), "-", rate(wins[classes == StartClass.CONTESTED])
     ]
 
 
