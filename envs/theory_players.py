@@ -152,7 +152,7 @@ def targeter_ball(game: GameView) -> tuple[np.ndarray, np.ndarray]:
 
 
 def refuge_point(game: GameView) -> np.ndarray:
-    """``c - R n`` ``(N, 3)``: the point of T's ball deepest into D's side of the plane (targeter step 3)."""
+    """``c - R n`` ``(N, 3)``: the point of T's ball deepest into D's side of the plane (targeter step 2)."""
     centre, radius = targeter_ball(game)
     _, normal = defense_plane(game)
     deepest: np.ndarray = centre - radius[:, None] * normal
