@@ -6,9 +6,10 @@ evaluation plays its games with the rollout (``league.rollout.games``), which gi
 outcomes on the same games (``tests/evaluation/test_engine.py``).
 
 ``python -m envs.match --episodes 1000`` (``envs-match`` once installed) prints the
-scripted-vs-scripted win rates; ``--by-class`` adds each matchup's attacker win rate on the
-games of each start class (``envs.start_classes``: T-race, A-certain, contested) and the class
-counts of the games; ``--version`` the installed package's version (read from its metadata:
+scripted-vs-scripted win rates on the ``dev`` games (``--games test``: the held-out ones);
+``--by-class`` gives each matchup's attacker win rate with its 95% Wilson interval overall and
+on the games of each start class (``envs.start_classes``: T-race, A-certain, contested) and
+the class counts of the games; ``--version`` the installed package's version (read from its metadata:
 ``envs`` knows nothing of ``league``, whose commands print the same number).
 """
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.metadata
+import math
 import sys
 from dataclasses import dataclass, field
 from typing import Iterator, Protocol
@@ -25,11 +27,23 @@ import numpy as np
 from envs.agents import AGENTS, ATTACKER_WIN_VALUES, Outcome
 from envs.config import GameConfig
 from envs.core import BatchedGame
-from envs.scenarios import SCENARIO_SETS, evaluation_scenarios
+from envs.scenarios import GAME_SETS, SCENARIO_SETS, evaluation_scenarios
 from envs.scripted import PLAYERS, ScriptedPlayer
-from envs.start_classes import StartClass, class_counts, classify, win_rates_by_class
+from envs.start_classes import StartClass, class_counts, classify
 
 DISTRIBUTION = "target-defense-league"  # pyproject.toml's project name
+Z_95 = 1.959963984540054
+
+
+def wilson_interval(wins: int, games: int, z: float = Z_95) -> tuple[float, float]:
+    """95% Wilson score interval of a win rate."""
+    if games == 0:
+        return (0.0, 1.0)
+    p = wins / games
+    denom = 1 + z * z / games
+    centre = (p + z * z / (2 * games)) / denom
+    half = z * math.sqrt(p * (1 - p) / games + z * z / (4 * games * games)) / denom
+    return (max(0.0, centre - half), min(1.0, centre + half))
 
 
 class Controller(Protocol):
@@ -90,9 +104,9 @@ def scripted_results(config: GameConfig, positions: np.ndarray) -> Iterator[tupl
                 yield attacker, targeter, defender, play(config, players, positions)
 
 
-def scripted_table(config: GameConfig, episodes: int) -> list[tuple[str, str, str, float, dict[str, int]]]:
-    """Attacker win rate of every scripted attacker against every scripted team."""
-    positions = evaluation_scenarios(config.scenario, episodes)
+def scripted_table(config: GameConfig, episodes: int, games: str = "dev") -> list[tuple[str, str, str, float, dict[str, int]]]:
+    """Attacker win rate of every scripted attacker against every scripted team on the fixed ``games``."""
+    positions = evaluation_scenarios(config.scenario, episodes, games)
     return [
         (attacker, targeter, defender, float(result.attacker_wins.mean()), result.outcome_counts())
         for attacker, targeter, defender, result in scripted_results(config, positions)
@@ -114,21 +128,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     parser.add_argument("--episodes", type=int, default=1000)
     parser.add_argument("--scenario", default="default", choices=sorted(SCENARIO_SETS))
+    parser.add_argument("--games", default="dev", choices=sorted(GAME_SETS),
+                        help="the fixed dev games or the held-out test games (default: dev)")
     parser.add_argument(
         "--by-class",
         action="store_true",
-        help="also the attacker win rate on each start class (envs.start_classes) and the classes' counts",
+        help="the attacker win rate with its 95%% Wilson interval overall and on each start class "
+        "(envs.start_classes), and the classes' counts",
     )
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be at least 1")
     config = GameConfig(scenario=args.scenario)
-    print(f"scenario {args.scenario!r}, {args.episodes} fixed episodes per row")
+    print(f"scenario {args.scenario!r}, {args.episodes} fixed {args.games} episodes per row")
     if args.by_class:
-        return _print_by_class(config, args.episodes)
+        return _print_by_class(config, args.episodes, args.games)
     print("| attacker | targeter | defender | attacker wins | captured | timeout | terminal_reached | attacker_intercepted |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
-    for attacker, targeter, defender, rate, counts in scripted_table(config, args.episodes):
+    for attacker, targeter, defender, rate, counts in scripted_table(config, args.episodes, args.games):
         c = counts
         print(
             f"| {attacker} | {targeter} | {defender} | {rate:.3f} | {c['captured']} | {c['timeout']} "
@@ -137,9 +154,10 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _print_by_class(config: GameConfig, episodes: int) -> int:
-    """The table with the attacker's win rate per start class beside the overall one ("-": no such start)."""
-    positions = evaluation_scenarios(config.scenario, episodes)
+def _print_by_class(config: GameConfig, episodes: int, games: str) -> int:
+    """The table with the attacker's win rate per start class beside the overall one, each with its
+    95% Wilson interval ("-": no such start)."""
+    positions = evaluation_scenarios(config.scenario, episodes, games)
     classes = classify(positions, config)
     counts = class_counts(classes)
     print("start classes (envs.start_classes): " + ", ".join(f"{c.value} {n}" for c, n in counts.items()))
@@ -148,9 +166,14 @@ def _print_by_class(config: GameConfig, episodes: int) -> int:
     print("| --- | --- | --- | --- |" + " --- |" * len(StartClass))
     for attacker, targeter, defender, result in scripted_results(config, positions):
         wins = result.attacker_wins
-        rates = " | ".join("-" if r is None else f"{r:.3f}" for r in win_rates_by_class(wins, classes).values())
-        print(f"| {attacker} | {targeter} | {defender} | {wins.mean():.3f} | {rates} |")
+        cells = [_rate(wins), *("-" if not counts[c] else _rate(wins[classes == c.value]) for c in StartClass)]
+        print(f"| {attacker} | {targeter} | {defender} | " + " | ".join(cells) + " |")
     return 0
+
+
+def _rate(wins: np.ndarray) -> str:
+    low, high = wilson_interval(int(wins.sum()), len(wins))
+    return f"{wins.mean():.3f} [{low:.3f}, {high:.3f}]"
 
 
 if __name__ == "__main__":

@@ -22,6 +22,20 @@ decoded from their global states) to the direction it wants to fly, ``(N, 3)``;
 | defender | ``pure_pursuit``          | fly at A                                                   |
 | defender | ``bisector_intercept``    | fly to where A's straight path to T crosses the bisector   |
 |          |                           | plane of A and D (D gets there no later than A)            |
+
+The players from the differential games of simple motion (``envs.theory_players``, where
+their formulas, sources and departures from the theory are):
+
+| role     | name                      | rule                                                       |
+| -------- | ------------------------- | ---------------------------------------------------------- |
+| attacker | ``apollonius``            | fly at the first point of T's straight path home that A    |
+|          |                           | reaches in time and D does not cut off (guards the         |
+|          |                           | terminal); away from D if D cuts off every one             |
+| targeter | ``active_defense``        | race home when the straight race is won, else fly at the   |
+|          |                           | point nearest the terminal that T reaches before A and D   |
+|          |                           | reaches before A                                           |
+| defender | ``active_defense``        | fly at the saddle-point interception point of A on the     |
+|          |                           | A/D bisector plane in front of T                           |
 """
 
 from __future__ import annotations
@@ -36,6 +50,7 @@ from envs.config import GameConfig
 from envs.geometry import lead_intercept, norm, unit
 from envs.kinematics import heading_vectors, headings_of, wrap_to_pi
 from envs.observations import decode_global_state
+from envs.theory_players import attacker_apollonius, defender_active_defense, targeter_active_defense
 
 # Proportional navigation gain (3 to 5 is the textbook range).
 NAVIGATION_GAIN = 3.0
@@ -178,13 +193,19 @@ PLAYERS: dict[str, dict[str, Direction]] = {
         "lead_intercept": attacker_lead_intercept,
         "proportional_navigation": attacker_proportional_navigation,
         "evade_defender": attacker_evade_defender,
+        "apollonius": attacker_apollonius,
     },
     "targeter": {
         "straight": targeter_straight,
         "avoid_attacker": targeter_avoid_attacker,
         "avoid_oncoming_attacker": targeter_avoid_oncoming_attacker,
+        "active_defense": targeter_active_defense,
     },
-    "defender": {"pure_pursuit": defender_pure_pursuit, "bisector_intercept": defender_bisector_intercept},
+    "defender": {
+        "pure_pursuit": defender_pure_pursuit,
+        "bisector_intercept": defender_bisector_intercept,
+        "active_defense": defender_active_defense,
+    },
 }
 # The paper's training opponents of the attacker (section 5).
 PAPER_TEAM = {"targeter": "avoid_attacker", "defender": "pure_pursuit"}

@@ -97,8 +97,10 @@ def race_margin(positions: np.ndarray, config: GameConfig) -> np.ndarray:
 
 
 def region_radius(targeter: np.ndarray, attacker: np.ndarray, directions: np.ndarray, config: GameConfig) -> np.ndarray:
-    """Distance from T along each direction ``(M, 3)`` to the edge of T's region, ``(N, M)``.
+    """Distance from T along each unit direction to the edge of T's region.
 
+    The arguments broadcast over their leading axes (positions ``(N, 1, 3)`` with directions
+    ``(1, M, 3)`` give ``(N, M)``; ``(N, 3)`` with ``(N, 3)``, one direction per game, ``(N,)``).
     The edge solves ``rho / v_T = (|T - A + rho w| - r_A) / v_A``; squared, with
     ``k = v_T / v_A`` and ``d = T - A``:
     ``(1/k^2 - 1) rho^2 + 2 (r_A / k - d.w) rho + r_A^2 - |d|^2 = 0``, whose one positive root
@@ -108,8 +110,8 @@ def region_radius(targeter: np.ndarray, attacker: np.ndarray, directions: np.nda
     r = config.attacker_radius
     d = targeter - attacker
     a = 1.0 / (k * k) - 1.0
-    b = 2.0 * (r / k - d @ directions.T)
-    c = (r * r - dot(d, d))[:, None]
+    b = 2.0 * (r / k - dot(d, directions))
+    c = r * r - dot(d, d)
     rho = (-b + np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))) / (2.0 * a)
     return np.where(c < 0, rho, 0.0)
 
@@ -129,7 +131,7 @@ def refuge_margin(
     for start in range(0, len(positions), chunk):
         part = positions[start : start + chunk]
         attacker, targeter, defender = part[:, ATTACKER, None], part[:, TARGETER, None], part[:, DEFENDER, None]
-        rho = region_radius(part[:, TARGETER], part[:, ATTACKER], rays, config)
+        rho = region_radius(targeter, attacker, rays[None], config)
         least = np.full(len(part), np.inf)
         for fraction in fractions:
             x = targeter + (fraction * rho)[..., None] * rays

@@ -28,8 +28,11 @@ import sys
 from typing import Any
 from pathlib import Path
 
+import numpy as np
 import torch
 
+from envs.start_classes import class_counts
+from league.evaluation.by_class import CLASS_NOTE, ClassRates, class_table, game_classes
 from league.evaluation.engine import MissingModuleError, PairEvaluation, Workers, evaluate_pairs
 from league.evaluation.panel import add_scripted
 from league.evaluation.results import last_iteration, record_evaluations
@@ -43,7 +46,8 @@ from league.core.players import Player
 from league.state.run_dir import RunDirError, open_run
 
 
-def evaluation_json(scenario: str, games: str, episodes: int, results: list[PairEvaluation], meta: Any) -> dict:
+def evaluation_json(scenario: str, games: str, episodes: int, results: list[PairEvaluation], meta: Any,
+                    classes: np.ndarray) -> dict:
     """The tables' numbers as data (``--json``; the schema is in docs/evaluation.md)."""
     pairs = []
     for r in results:
@@ -52,10 +56,12 @@ def evaluation_json(scenario: str, games: str, episodes: int, results: list[Pair
             "attacker": r.attacker.name, "team": r.team.name, "games": r.games, "attacker_wins": r.attacker_wins,
             "attacker_win_rate": r.attacker_wins / r.games, "interval_95": [low, high],
             "outcomes": dict(r.result.outcome_counts()),
+            "by_start_class": ClassRates.of(r.result.attacker_wins, classes).as_json(),
         })
     return {
-        "scenario": scenario, "games": games, "episodes": episodes, "pairs": pairs,
-        "methods": method_rows(league_results(results)), "meta_game": meta.as_json() if meta else None,
+        "scenario": scenario, "games": games, "episodes": episodes,
+        "start_classes": {c.value: n for c, n in class_counts(classes).items()},
+        "pairs": pairs, "methods": method_rows(league_results(results)), "meta_game": meta.as_json() if meta else None,
         "mixtures": mixture_json(results),
     }
 
@@ -174,11 +180,14 @@ def main(argv: list[str] | None = None) -> int:
         record_evaluations(store, last_iteration(store), recorded, args.games)
     attackers, teams = meta_game_players([p for p in players if isinstance(p, Player)])
     meta = meta_game(attackers, teams, {(r.attacker.id, r.team.id): (r.attacker_wins, r.games) for r in recorded})
+    classes = game_classes(run.game, args.games, episodes)
     if args.json:
-        print(json.dumps(evaluation_json(run.game.scenario, args.games, episodes, results, meta), indent=1))
+        print(json.dumps(evaluation_json(run.game.scenario, args.games, episodes, results, meta, classes), indent=1))
         return 0
     print(f"{episodes} fixed {args.games} games of scenario set `{run.game.scenario}` per pair\n")
     print(format_table(results))
+    print(CLASS_NOTE + "\n\n" + class_table(
+        [(r.attacker.name, r.team.name, ClassRates.of(r.result.attacker_wins, classes)) for r in results], classes))
     if mixtures_of(results):
         print(mixture_table(results, args.mixture_seed))
     print(method_table(recorded))

@@ -18,19 +18,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-Z_95 = 1.959963984540054
+from envs.match import Z_95, wilson_interval  # noqa: F401  (its home: the scripted table prints it too)
+
 SEED_INTERVAL = "Student-t 95% over seeds"  # printed beside every ``mean_interval`` on a results page
-
-
-def wilson_interval(wins: int, games: int, z: float = Z_95) -> tuple[float, float]:
-    """95% Wilson score interval of a win rate."""
-    if games == 0:
-        return (0.0, 1.0)
-    p = wins / games
-    denom = 1 + z * z / games
-    centre = (p + z * z / (2 * games)) / denom
-    half = z * math.sqrt(p * (1 - p) / games + z * z / (4 * games * games)) / denom
-    return (max(0.0, centre - half), min(1.0, centre + half))
 
 
 def mean_interval(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float]:

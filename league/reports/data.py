@@ -20,7 +20,10 @@ from league.analysis.nash import MetaGame, meta_game, meta_game_players
 from league.analysis.statistics import wilson_interval
 from league.config import RunConfig
 from league.core.payoff import aggregate, league_ratings
+from league.core.payoff import attacker_won_games
 from league.core.players import Player
+from league.evaluation.by_class import CLASS_NOTE, ClassRates, class_header, game_classes
+from league.evaluation.results import game_outcomes
 from league.evaluation.learning_curves import Curve, read_curves
 from league.evaluation.trajectories import Episode, Trajectories
 from league.state.store import LeagueStore
@@ -61,6 +64,8 @@ class ReportData:
     missing_generations: list[str] = field(default_factory=list)  # points of those lines not evaluated
     evaluated_iteration: int | None = None  # the run's final evaluation, whose games refit that iteration's ratings
     curves: list[Curve] = field(default_factory=list)  # learners on the fixed games as they trained
+    by_class: list[tuple[str, str, ClassRates]] = field(default_factory=list)  # (attacker, team, rates), a trained player in each
+    classes: np.ndarray | None = None  # the start class of each dev game those rates count
 
 
 def player_games(store: LeagueStore, payoff: dict[tuple[int, int], tuple[int, int]]) -> dict[int, int]:
@@ -138,6 +143,7 @@ def gather(store: LeagueStore, run: RunConfig, trajectories: Trajectories | None
         f"Evaluation: {run.evaluation.episodes} fixed dev games of scenario set `{run.game.scenario}` per pair."
     )
     generations, missing_generations = generation_lines(players, payoff)
+    by_class, classes = class_rows(store, run, players)
     return ReportData(
         run=run, players=players, attackers=attackers, teams=teams, payoff=payoff, ratings=dict(ratings),
         final_ratings=league_ratings(store.counted_results(), [p.id for p in players]),
@@ -150,8 +156,24 @@ def gather(store: LeagueStore, run: RunConfig, trajectories: Trajectories | None
         exploitability=exploitability(players, store.newest_evaluation_rows()),
         generations=generations, missing_generations=missing_generations,
         evaluated_iteration=store.get_meta("evaluated_iteration"),
-        curves=read_curves(store),
+        curves=read_curves(store), by_class=by_class, classes=classes,
     )
+
+
+def class_rows(store: LeagueStore, run: RunConfig, players: list[Player]) -> tuple[list[tuple[str, str, ClassRates]], np.ndarray | None]:
+    """Each evaluated pair with a trained player, its attacker win rate by start class on the dev
+    games (``league.evaluation.by_class``), and the classes of those games (``None``: no outcomes stored)."""
+    outcomes = game_outcomes(store, "dev")
+    if not outcomes:
+        return [], None
+    by_id = {p.id: p for p in players}
+    classes = game_classes(run.game, "dev", max(len(o) for o in outcomes.values()))
+    rows = []
+    for (attacker, team), games in sorted(outcomes.items()):
+        pair = by_id.get(attacker), by_id.get(team)
+        if None not in pair and any(p.kind != "scripted" for p in pair):
+            rows.append((pair[0].name, pair[1].name, ClassRates.of(attacker_won_games(games), classes)))
+    return rows, classes
 
 
 def run_generations(store: LeagueStore) -> tuple[list[GenerationLine], list[str]]:
@@ -194,6 +216,17 @@ def rating_rows(data: ReportData) -> list[list[str]]:
     return [[p.name, p.side, p.kind, f"{newest[p.id]:.0f}" if p.id in newest else "no games",
              f"{nash[p.id]:.3f}" if p.id in nash else "", str(data.games.get(p.id, 0))]
             for p in by_rating]
+
+
+CLASS_RATES_NOTE = CLASS_NOTE + " On the dev games of the run's evaluation, every evaluated pair with a trained player."
+NO_CLASS_RATES = "No per-game outcomes of a pair with a trained player stored (python -m league.evaluate plays them)."
+
+
+def class_rate_table(data: ReportData) -> tuple[list[str], list[list[str]]] | None:
+    """Header and rows of the table by start class; ``None`` without rows."""
+    if data.classes is None or not data.by_class:
+        return None
+    return ["attacker", "team", *class_header(data.classes)], [[a, t, *r.cells()] for a, t, r in data.by_class]
 
 
 GENERATIONS_NOTE = ("Every snapshot of each side against the scripted players of the other side, by snapshot version "

@@ -25,8 +25,10 @@ from league.analysis.nash import GROUP_HEADER, GROUP_NOTE, GROUP_TITLE, META_GAM
 from league.core.players import POOL_KINDS
 from league.evaluation.trajectories import Episode
 from league.reports.data import (
+    CLASS_RATES_NOTE,
     CURVES_NOTE,
     GENERATIONS_NOTE,
+    NO_CLASS_RATES,
     NO_EXPLOITABILITY,
     NO_META_GAME,
     RATINGS_HEADER,
@@ -35,6 +37,7 @@ from league.reports.data import (
     Phase,
     ReportData,
     Series,
+    class_rate_table,
     payoff_grid,
     rating_rows,
     table_one_rows,
@@ -266,6 +269,13 @@ def meta_game_html(data: ReportData) -> list[str]:
             f"<p class='note'>{html.escape(META_GAME_NOTE)}</p>"]
 
 
+def class_rates_html(data: ReportData) -> list[str]:
+    table = class_rate_table(data)
+    if table is None:
+        return [f"<p class='note'>{html.escape(NO_CLASS_RATES)}</p>"]
+    return [f"<p>{html.escape(CLASS_RATES_NOTE)}</p>", html_table(*table)]
+
+
 def exploitability_html(data: ReportData) -> list[str]:
     if not data.exploitability:
         return [f"<p>{html.escape(NO_EXPLOITABILITY)}</p>"]
@@ -282,6 +292,7 @@ def write(data: ReportData, out: Path) -> None:
         "terminal while avoiding A, D pursuing A). The paper's starting positions are not published, so compare the "
         "ordering, not the values.</p>",
         html_table(TABLE_ONE_HEADER, table_one_rows(data)),
+        "<h2>By start class</h2>", *class_rates_html(data),
         "<h2>Payoff matrix</h2>", figure_div(payoff_figure(data), "payoff"),
         "<h2>Meta-game</h2>", *meta_game_html(data),
         "<h2>Progress over generations</h2>", f"<p>{html.escape(GENERATIONS_NOTE)}</p>",

@@ -8,14 +8,17 @@ from envs.render import plot_episode
 from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
 from league.analysis.nash import format_meta_game
 from league.reports.data import (
+    CLASS_RATES_NOTE,
     CURVES_NOTE,
     GENERATIONS_NOTE,
+    NO_CLASS_RATES,
     NO_EXPLOITABILITY,
     NO_META_GAME,
     RATINGS_HEADER,
     RATINGS_NOTE,
     TABLE_ONE_HEADER,
     ReportData,
+    class_rate_table,
     rating_rows,
     table_one_rows,
 )
@@ -26,6 +29,11 @@ def exploitability_markdown(data: ReportData) -> str:
     if not data.exploitability:
         return NO_EXPLOITABILITY + "\n"
     return EXPLOITABILITY_NOTE + "\n\n" + markdown_table(EXPLOITABILITY_HEADER, [e.row() for e in data.exploitability])
+
+
+def class_section(data: ReportData) -> list[str]:
+    table = class_rate_table(data)
+    return [NO_CLASS_RATES, ""] if table is None else [CLASS_RATES_NOTE, "", markdown_table(*table)]
 
 
 def markdown_table(header: list[str], rows: list[list[str]]) -> str:
@@ -56,6 +64,7 @@ def write_markdown(data: ReportData, out: Path) -> Path:
         "(T to the terminal while avoiding A, D pursuing A). The paper's starting positions are not "
         "published, so compare the ordering, not the values.", "",
         markdown_table(TABLE_ONE_HEADER, table_one_rows(data)),
+        "## By start class", "", *class_section(data),
         "## Payoff matrix", "", "![payoff](payoff.png)", "",
         "## Meta-game", "", format_meta_game(data.meta, NO_META_GAME),
         "## Progress over generations", "", GENERATIONS_NOTE, "", "![generations](generations.png)", "",

@@ -31,10 +31,11 @@ from pathlib import Path
 import numpy as np
 
 from envs.scenarios import evaluation_scenarios
-from envs.start_classes import StartClass, classify, win_rates_by_class
+from envs.start_classes import classify, win_rates_by_class
 from league.analysis.nash import meta_game, weight_group
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
 from league.core.players import Player
+from league.evaluation.by_class import CLASSES, free_losses
 from league.evaluation.panel import add_scripted, every_scripted_player
 from league.evaluation.learning_curves import GameStats
 from league.core.payoff import attacker_won_games
@@ -42,7 +43,6 @@ from league.evaluation.results import game_outcomes, test_game_stats
 from league.state.run_dir import open_run
 
 SIGNIFICANCE = 0.05  # of the paired t-test over seeds
-CLASSES = tuple(StartClass)  # the order of ``Row.by_class``
 
 
 @dataclass(frozen=True)
@@ -103,10 +103,7 @@ class Row:
         """What the geometry gave away: a team's losses on T-race starts, an attacker's failures on A-certain ones."""
         if not self.by_class:
             return None
-        if self.side == "team":
-            return self.by_class[CLASSES.index(StartClass.T_RACE)][0]
-        won = self.by_class[CLASSES.index(StartClass.A_CERTAIN)][0]
-        return None if won is None else 1.0 - won
+        return free_losses(self.side, {c: mine for c, (mine, _) in zip(CLASSES, self.by_class)})
 
     @property
     def rate(self) -> float:

@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from league.core.payoff import ATTACKER_WINS
 from league.evaluate import main
 from league.state.run_dir import open_run
@@ -114,3 +116,25 @@ def test_progress_lines_are_spaced_in_time():
     for done in range(1, 6):
         progress(done, 5)
     assert [line.split(",")[0] for line in out.getvalue().splitlines()] == ["x: 1 of 5 pairs", "x: 5 of 5 pairs"]
+
+
+def test_json_gives_each_pair_its_win_rate_by_start_class_and_its_free_losses(run_copy, capsys):
+    from envs.scenarios import evaluation_scenarios
+    from envs.start_classes import classify
+    from league.config import saved_run_config
+
+    args = ["--run-dir", str(run_copy), "--workers", "0", "--episodes", "60", "--games", "test",
+            "--players", "team-v1", "scripted-lead_intercept", "--json"]
+    assert main(args) == 0
+    out = json.loads(capsys.readouterr().out)
+    game = saved_run_config(run_copy).game
+    classes = classify(evaluation_scenarios(game.scenario, 60, "test"), game)
+    assert out["start_classes"] == {c: int((classes == c).sum()) for c in ("t_race", "a_certain", "contested")}
+    assert all(n > 0 for n in out["start_classes"].values())
+    for pair in out["pairs"]:
+        by_class = pair["by_start_class"]
+        rates = by_class["attacker_win_rate"]
+        counts = out["start_classes"]
+        # The classes' wins add up to the pair's wins; the free losses are read off the two decided classes.
+        assert sum(rates[c] * counts[c] for c in counts) == pytest.approx(pair["attacker_wins"])
+        assert by_class["free_losses"] == {"team": rates["t_race"], "attacker": pytest.approx(1 - rates["a_certain"])}

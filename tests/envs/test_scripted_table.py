@@ -27,7 +27,7 @@ from envs.scenarios import SCENARIO_SETS, evaluation_scenarios
 from envs.scripted import PLAYERS
 
 TABLE = Path(__file__).with_name("scripted_table.json")
-# Fixed games per pair: the whole table plays in about 15 s on a 2-core machine.
+# Fixed games per pair: the whole table plays in about 45 s of one core.
 EPISODES = {"default": 1000, "defender_close": 250, "attacker_far": 250, "long_flight": 250}
 
 

@@ -7,6 +7,7 @@ import pytest
 from envs.config import GameConfig
 from envs.match import play, scripted_players
 from envs.scenarios import evaluation_scenarios
+from envs.scripted import PLAYERS
 from league.config import RunConfig
 from league.curves import main as curves_main
 from league.evaluation.learning_curves import GameStats, LearningCurves, read_curves
@@ -76,10 +77,9 @@ def test_training_stored_a_point_per_multiple_with_the_reference_rows(tiny_run):
         untrained = [name for kind, name, _ in curve.references if kind == "untrained"]
         assert untrained == [f"{learner}-v0"]
         if curve.learner.side == "attacker":
-            assert scripted == ["scripted-evade_defender", "scripted-lead_intercept", "scripted-proportional_navigation",
-                                "scripted-pure_pursuit"]
+            assert scripted == sorted(f"scripted-{name}" for name in PLAYERS["attacker"])
         else:
-            assert len(scripted) == 6  # every scripted team
+            assert len(scripted) == len(PLAYERS["targeter"]) * len(PLAYERS["defender"])  # every scripted team
     # A stored reference is what those players do on the same fixed games now.
     game = run.game.model_copy(update={"terminal_reward": 0.0})
     positions = evaluation_scenarios(game.scenario, games)

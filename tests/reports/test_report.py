@@ -287,3 +287,37 @@ def test_plots_label_what_they_draw(tiny_run):
                 continue  # a key for the grey lines, and the refit's vertical line
             assert handle.get_marker() not in (None, "None", ""), text.get_text()  # one rating is one visible point
         assert any("final evaluation" in t.get_text() for t in legend.get_texts())
+
+
+def test_the_report_gives_each_trained_pair_its_win_rate_by_start_class_and_free_losses(report_dir, tiny_run):
+    from league.config import saved_run_config
+    from league.core.payoff import attacker_won_games
+    from league.evaluation.by_class import class_header, game_classes
+    from league.evaluation.results import game_outcomes
+    from envs.start_classes import win_rates_by_class
+
+    store = LeagueStore(tiny_run)
+    try:
+        names = {p.id: p for p in store.players()}
+        outcomes = game_outcomes(store, "dev")
+    finally:
+        store.close()
+    game = saved_run_config(tiny_run).game
+    classes = game_classes(game, "dev", max(len(o) for o in outcomes.values()))
+    text = (report_dir / "report.md").read_text()
+    page = (report_dir / "index.html").read_text()
+    header = ["attacker", "team", *class_header(classes)]
+    assert "| " + " | ".join(header) + " |" in text
+    assert "".join(f"<th>{html.escape(h)}</th>" for h in header) in page
+    shown = 0
+    for (a, t), games in outcomes.items():
+        if names[a].kind == "scripted" and names[t].kind == "scripted":
+            continue
+        rates = win_rates_by_class(attacker_won_games(games), classes[: len(games)])
+        cells = ["-" if r is None else f"{r:.3f}" for r in rates.values()]
+        team_free = cells[0]  # the attacker's wins on T-race starts
+        attacker_free = "-" if rates["a_certain"] is None else f"{1 - rates['a_certain']:.3f}"
+        row = [names[a].name, names[t].name, *cells, team_free, attacker_free]
+        assert "| " + " | ".join(row) + " |" in text
+        shown += 1
+    assert shown > 0
