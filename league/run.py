@@ -5,7 +5,8 @@ joins an existing Ray cluster (without it the run starts a private Ray instance,
 when another cluster runs on the machine); ``--set key.sub=value`` overrides config keys.
 
 Exit codes: 0 done; 2 a bad config, argument or run directory (one line on stderr,
-nothing written), a run directory another process is training, or a full disk;
+nothing written), a run directory another process is training, a full disk, or an
+``--address`` where no cluster answers within about 30 s or one that asks for a token;
 130 / 143 stopped by SIGINT (Ctrl-C) / SIGTERM, with one line saying where the run
 stopped and how to resume it. A new run that fails before its first checkpoint removes
 what it wrote.
@@ -33,6 +34,7 @@ import shutil
 import time
 from pathlib import Path
 
+from league.cluster import ClusterError, check_cluster, quiet_node_deaths
 from league.config import ConfigError, RunConfig, load_config
 from league.training.lifecycle import (
     finish, finished_iteration, intact_checkpoints, new_run, phase_count, resume_run, stopped_message,
@@ -112,6 +114,8 @@ def start_ray(run: RunConfig, address: str | None) -> None:
     }
     try:
         ray.init(logging_level=logging.ERROR, log_to_driver=False, **where)
+        if address:
+            quiet_node_deaths()
     except SystemExit as exit_:
         if exit_.code == signal.SIGTERM:  # ray.init's own SIGTERM handler ends in sys.exit(15)
             raise Stopped(signal.SIGTERM) from None
@@ -174,8 +178,9 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(run.resources.threads_for(1))  # the driver: learner, local env runner, evaluation
     progress = None
     try:
+        address = check_cluster(args.address, stop.interruptible) if args.address else None  # one line, not a hang
         with stop.held_by_main_thread():
-            start_ray(run, args.address)
+            start_ray(run, address)
             stop.install()
         stop.check()
         if args.resume:
@@ -194,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
         total = time.perf_counter() - started
         progress.message(f"done in {total:.0f} s ({coordinator.time_split.summary(total)}): {run_dir}")
         return 0
-    except RunDirError as err:
+    except (RunDirError, ClusterError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as interrupted:  # `Stopped`, or a library's own KeyboardInterrupt raised from it (`ray.get`)

@@ -255,7 +255,9 @@ class EvaluationPool:
 
     The actors are spread over the cluster's nodes (``resources``: custom Ray resources
     each one needs). The driver loads the learned modules from the run directory and
-    sends them. A slice whose actor is lost (its node died) is replayed here, and said.
+    sends them. A slice whose actor is lost (its node died) is replayed here, and said;
+    a new actor is asked for at once, and joins the pool at the first evaluation after Ray
+    placed it (when the cluster has room again: a node joined).
     """
 
     def __init__(
@@ -264,11 +266,14 @@ class EvaluationPool:
     ):
         import ray
 
-        self.game, self.run_dir, self.log = game, Path(run_dir), log
-        actor_class = ray.remote(num_cpus=cpus_per_worker, resources=resources or {}, scheduling_strategy="SPREAD")
-        threads = torch_threads or max(1, int(cpus_per_worker))  # as `Resources.threads_for`
+        self.game, self.run_dir, self.log, self.workers = game, Path(run_dir), log, workers
+        self.actor_class = ray.remote(num_cpus=cpus_per_worker, resources=resources or {}, scheduling_strategy="SPREAD")(
+            EvaluationWorker
+        )
+        self.threads = torch_threads or max(1, int(cpus_per_worker))  # as `Resources.threads_for`
         self.sent: dict[tuple[str, float], Any] = {}  # (module path, mtime) -> object ref
-        self.actors = [actor_class(EvaluationWorker).remote(game.model_dump(), threads) for _ in range(workers)]
+        self.actors = [self.new_actor() for _ in range(workers)]
+        self.replacements: list[tuple[Any, Any]] = []  # (actor, its `ready` call) for each lost actor, until placed
         # Bounded: workers that cannot be placed (their CPUs held by env runners) would wait forever.
         _, pending = ray.wait([actor.ready.remote() for actor in self.actors], num_returns=workers, timeout=WORKER_START_S)
         if pending:
@@ -280,6 +285,37 @@ class EvaluationPool:
             )
             self.close()
             self.actors = []
+
+    def new_actor(self) -> Any:
+        return self.actor_class.remote(self.game.model_dump(), self.threads)
+
+    def lost(self, actor: Any, err: Exception) -> None:
+        """``actor`` died (its node with it): out of the pool, a replacement asked for."""
+        self.actors.remove(actor)
+        replacement = self.new_actor()
+        self.replacements.append((replacement, replacement.ready.remote()))
+        self.log(
+            f"evaluation worker lost ({type(err).__name__}): its games are replayed in the driver; "
+            f"{len(self.actors)} of {self.workers} left, a new one joins when the cluster has room"
+        )
+
+    def take_replacements(self) -> None:
+        """Replacements that Ray has placed and started join the pool; the others keep waiting."""
+        import ray
+
+        if not self.replacements:
+            return
+        ready, _ = ray.wait([ref for _, ref in self.replacements], num_returns=len(self.replacements), timeout=0)
+        for actor, ref in [r for r in self.replacements if r[1] in ready]:
+            self.replacements.remove((actor, ref))
+            try:
+                ray.get(ref)
+            except ray.exceptions.RayError:  # it died before it started: ask again
+                again = self.new_actor()
+                self.replacements.append((again, again.ready.remote()))
+                continue
+            self.actors.append(actor)
+            self.log(f"evaluation worker back: {len(self.actors)} of {self.workers}")
 
     def module_ref(self, player: Player) -> Any:
         import ray
@@ -300,6 +336,7 @@ class EvaluationPool:
     ) -> list[PairEvaluation]:
         import ray
 
+        self.take_replacements()
         if not self.actors:
             return evaluate_here(self.game, self.run_dir, pairs, episodes, games, progress)
         bounds = np.linspace(0, episodes, len(self.actors) + 1).astype(int)
@@ -319,9 +356,7 @@ class EvaluationPool:
                     parts.append(ray.get(future))
                 except ray.exceptions.RayActorError as err:
                     if actor in self.actors:
-                        self.actors.remove(actor)
-                        self.log(f"evaluation worker lost ({type(err).__name__}); {len(self.actors)} left")
-                    self.log(f"replaying evaluation games {start}..{start + n - 1} of {a.name} vs {t.name} in the driver")
+                        self.lost(actor, err)
                     parts.append(evaluate_pair(self.game, a, t, n, self.run_dir, start, games=games).result)
             results.append(PairEvaluation(a, t, merge(parts)))
             if progress:
@@ -331,7 +366,7 @@ class EvaluationPool:
     def close(self) -> None:
         import ray
 
-        for actor in self.actors:
+        for actor in self.actors + [actor for actor, _ in self.replacements]:
             ray.kill(actor)
 
 

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import logging
 import math
 from typing import Any
 
 import numpy as np
 
 from league.rollout.train_batch import standardized
+from ray.rllib.algorithms.algorithm_config import AlgorithmConfig
 from ray.rllib.algorithms.ppo import PPO
+from ray.rllib.env.env_runner_group import EnvRunnerGroup
 from ray.rllib.evaluation.postprocessing import Postprocessing
 from ray.rllib.policy.sample_batch import MultiAgentBatch, SampleBatch
 from ray.rllib.utils.metrics import (
@@ -25,7 +28,53 @@ from ray.rllib.utils.metrics import (
 )
 
 
-class LeaguePPO(PPO):
+# RLlib logs each failed call to a lost env runner and its return at ERROR and WARNING, a
+# dozen lines with Ray's error text; the run says what it lost and got back in one line each.
+logging.getLogger("ray.rllib.utils.actor_manager").setLevel(logging.CRITICAL)
+
+PING = "league_ping"  # the tag of the pings to lost env runners (`FaultTolerantPPO.restore_env_runners`)
+
+
+def with_env_runner_fault_tolerance(config: AlgorithmConfig) -> AlgorithmConfig:
+    """A lost env runner (its node died) neither stops the run nor holds up the others.
+
+    Ray restarts it (``restart_failed_env_runners``) once a node with room for it joins; until
+    then it is out of service and the others sample the whole batch. Before every training
+    step RLlib's health probe pings the runners out of service and waits for all answers up to
+    ``env_runner_health_probe_timeout_s`` (30 s by default): a runner whose node is gone
+    answers with an error only after about 2 s, so every iteration after a loss took 2 s more
+    (sampling 0.3 s -> 2.05 s in ``bench/node_loss.py``). 0 here: the probe only sends its
+    pings, and ``FaultTolerantPPO.restore_env_runners`` brings a runner back once one of its
+    pings has been answered.
+    """
+    return config.fault_tolerance(restart_failed_env_runners=True, env_runner_health_probe_timeout_s=0.0)
+
+
+class FaultTolerantPPO(PPO):
+    """RLlib's PPO with lost env runners brought back without holding up the others
+    (``with_env_runner_fault_tolerance``)."""
+
+    def restore_env_runners(self, env_runner_group: EnvRunnerGroup) -> list[int]:
+        """RLlib's restore (state and weights sent to the runners back in service), with lost
+        runners pinged without waiting: one ping in flight each, and a runner whose ping was
+        answered since the last call is back in service (``with_env_runner_fault_tolerance``).
+        A runner back gets the driver's current match plan, which ``set_match_plan`` sent the
+        others before this iteration."""
+        lost = sorted(set(range(1, env_runner_group.num_remote_env_runners() + 1)) - set(env_runner_group.healthy_env_runner_ids()))
+        if lost:
+            env_runner_group.fetch_ready_async_reqs(tags=PING, timeout_seconds=0.0, mark_healthy=True)
+            env_runner_group.foreach_env_runner_async(lambda runner: runner.ping(), tag=PING, healthy_only=False, remote_worker_ids=lost)
+        restored = super().restore_env_runners(env_runner_group)
+        local = env_runner_group.local_env_runner
+        if restored and local is not None:
+            plan = local.config.policy_mapping_fn
+            env_runner_group.foreach_env_runner(
+                lambda runner: runner.config.multi_agent(policy_mapping_fn=plan), local_env_runner=False, remote_worker_ids=restored,
+            )
+        return restored
+
+
+class LeaguePPO(FaultTolerantPPO):
     """PPO whose training step takes its data straight from the fast sampler's arrays.
 
     The same steps as ``PPO.training_step`` (sample, update the learner, sync the weights),

@@ -30,7 +30,7 @@ from envs.single import action_space
 from league.config import RunConfig
 from league.core.match_plan import MatchPlan
 from league.core.players import Player
-from league.rllib.algorithm import MINIBATCH_SIZES, LeaguePPO
+from league.rllib.algorithm import MINIBATCH_SIZES, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
 from league.rllib.env_runner import BatchedEnvRunner, SeededEnvRunner, seed_iteration
 from league.rllib import compat
@@ -183,8 +183,8 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
     for player in players:
         specs.update(player_specs(run, player))
     res, ppo = run.resources, run.ppo
-    return (
-        PPOConfig(algo_class=LeaguePPO if res.sampler == "fast" else PPO)
+    config = (
+        PPOConfig(algo_class=LeaguePPO if res.sampler == "fast" else FaultTolerantPPO)
         .environment(env=TargetDefenseMultiAgentEnv, env_config=env_config(run), normalize_actions=False, clip_actions=False)
         .env_runners(
             num_env_runners=res.num_env_runners,
@@ -221,7 +221,6 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             learner_class=LeaguePPOLearner,
             learner_connector=lambda observation_space, action_space: AttackerRewardByMethod(),
         )
-        .fault_tolerance(restart_failed_env_runners=True)
         .callbacks(
             OutcomeRecorder,
             on_environment_created=functools.partial(_runner_threads, res.threads_for(res.num_cpus_per_env_runner)),
@@ -229,6 +228,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
         .debugging(seed=run.seed, log_level="ERROR")
         .reporting(metrics_num_episodes_for_smoothing=100)
     )
+    return with_env_runner_fault_tolerance(config)
 
 
 def set_match_plan(algo: Algorithm, plan: MatchPlan) -> None:

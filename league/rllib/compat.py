@@ -1,5 +1,5 @@
 """Every reach into RLlib's internals, in one place, written for Ray ``RAY_VERSION`` (and the
-one into torch's, for the CPU's bf16).
+one into torch's, for the CPU's bf16, and those into Ray core's, for joining a cluster).
 
 RLlib's public API has no way to do what these functions do; each says what it reads or
 writes and why the league needs it. No other module touches a private RLlib attribute or
@@ -34,6 +34,63 @@ def native_bf16() -> bool:
     """Whether this CPU multiplies bfloat16 natively (AMX or AVX-512 BF16); elsewhere torch
     emulates bf16 matmuls, slower than float32's. Torch tells only through private helpers."""
     return torch.cpu._is_amx_tile_supported() or torch.cpu._is_avx512_bf16_supported()
+
+
+# ---------------------------------------------------------------- Ray core (joining a cluster: league/cluster.py)
+def gcs_address(address: str) -> str:
+    """``host:port`` of the GCS that ``address`` names (``auto`` resolved), as ``ray.init`` resolves
+    it; Ray's ``ConnectionError`` or ``ValueError`` if there is none."""
+    from ray._private.services import canonicalize_bootstrap_address_or_die
+
+    return canonicalize_bootstrap_address_or_die(address)
+
+
+def ask_gcs(address: str) -> None:
+    """Ask the GCS at ``address`` for its cluster id (blocks; Ray's ``AuthenticationError`` when it
+    asks for a token this process does not send, ``RpcError`` when it does not answer)."""
+    from ray._raylet import GcsClient
+
+    GcsClient(address=address).cluster_id  # noqa: B018 (the property asks the GCS)
+
+
+def has_auth_token() -> bool:
+    """Whether this machine has a Ray token, where Ray looks for one whatever the auth mode."""
+    from ray._raylet import AuthenticationTokenLoader
+
+    return AuthenticationTokenLoader.instance().has_token(ignore_auth_mode=True)
+
+
+def enable_token_auth() -> None:
+    """Token mode for this process and the processes it starts: ``RAY_AUTH_MODE=token`` and Ray's
+    cached config read again (what Ray's own ``_enable_token_auth`` does for ``address="auto"``)."""
+    import os
+
+    from ray._raylet import AuthenticationTokenLoader, Config
+
+    os.environ["RAY_AUTH_MODE"] = "token"
+    Config.initialize("")
+    AuthenticationTokenLoader.instance().reset_cache()
+
+
+def filter_driver_errors(keep: Any) -> None:
+    """What Ray's error channel sends this driver (printed even with ``log_to_driver=False``)
+    goes through ``keep(lines) -> lines`` first: ``print_to_stdstream`` of ``ray._private.worker``
+    wrapped, for its messages from raylets, once per process."""
+    import ray._private.worker as ray_worker
+
+    original = ray_worker.print_to_stdstream
+    if getattr(original, "filtered", False):
+        return
+
+    def print_to_stdstream(data: dict, ignore_prefix: bool) -> None:
+        if data.get("pid") == "raylet":
+            data = {**data, "lines": keep(data["lines"])}
+            if not data["lines"]:
+                return
+        original(data, ignore_prefix)
+
+    print_to_stdstream.filtered = True  # type: ignore[attr-defined]
+    ray_worker.print_to_stdstream = print_to_stdstream
 
 
 # ---------------------------------------------------------------- AlgorithmConfig

@@ -11,7 +11,9 @@ from envs.scenarios import evaluation_scenarios
 from envs.scripted import PLAYERS, ScriptedPlayer
 from league.config import load_config, saved_run_config
 from league.evaluate import main as evaluate_main
-from league.evaluation.engine import LearnedAgent, deterministic, evaluate_pair, evaluate_pairs, merge, play_fixed_games
+from league.evaluation.engine import (
+    EvaluationPool, LearnedAgent, deterministic, evaluate_pair, evaluate_pairs, merge, play_fixed_games,
+)
 from league.rllib.bridge import learner_spec
 from league.rollout.games import ScriptedOnState
 from league.core.payoff import attacker_won
@@ -37,6 +39,28 @@ def test_workers_give_the_numbers_of_a_plain_loop(ray_instance, tmp_path, games)
     other = play(game, scripted_players("proportional_navigation", "straight", "bisector_intercept"),
                  evaluation_scenarios("default", 301, {"dev": "test", "test": "dev"}[games]))
     assert not np.array_equal(plain.steps, other.steps)  # the other set's games end otherwise
+
+
+def test_a_lost_worker_is_replayed_here_and_replaced_when_there_is_room(ray_instance, tmp_path):
+    """A worker dies (its node did): its games are played in the driver, said in one line, and a
+    new worker joins the pool at the next evaluation once Ray has placed it (here at once)."""
+    import ray
+
+    game, said = GameConfig(), []
+    [expected] = evaluate_pairs(game, tmp_path, [(ATTACKER, TEAM)], 60)
+    pool = EvaluationPool(game, tmp_path, workers=2, log=said.append)
+    try:
+        ray.kill(pool.actors[0])
+        [lost] = pool.evaluate([(ATTACKER, TEAM)], 60)
+        assert said == ["evaluation worker lost (ActorDiedError): its games are replayed in the driver; "
+                        "1 of 2 left, a new one joins when the cluster has room"]
+        ray.get(pool.replacements[0][1], timeout=120)  # placed: this instance has room
+        [back] = pool.evaluate([(ATTACKER, TEAM)], 60)
+        assert said[1:] == ["evaluation worker back: 2 of 2"] and len(pool.actors) == 2
+    finally:
+        pool.close()
+    for result in (lost, back):
+        np.testing.assert_array_equal(result.result.outcome, expected.result.outcome)
 
 
 def assert_same_games(rollout, plain):
