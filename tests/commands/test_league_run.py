@@ -66,7 +66,9 @@ def tiny_config(tmp_path):
 
 def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
     run_dir = tmp_path / "run"
-    out = finish(league("--config", tiny_config(3, 400), "--run-dir", str(run_dir)))
+    # The attackers' games all for the scripted teams, evenly, so that all twelve meet them in this short run.
+    out = finish(league("--config", tiny_config(3, 1000), "--run-dir", str(run_dir), "--set", "league.scripted_share={attacker: 1.0}",
+                        "--set", "league.scripted_weighting=uniform"))
     snapshots = query(run_dir, "SELECT side, version, checkpoint FROM players WHERE kind = 'snapshot' ORDER BY id")
     # v0 of both sides at the start, then one snapshot per phase: attacker, team, attacker.
     assert [(s, v) for s, v, _ in snapshots] == [("attacker", 0), ("team", 0), ("attacker", 1), ("team", 1), ("attacker", 2)]
@@ -88,12 +90,12 @@ def test_a_run_snapshots_grows_the_league_and_evaluates(tmp_path, tiny_config):
     assert all(learner == snapshot for learner, snapshot in steps), steps
     # Every scripted team combination is in the attackers' pool: a player, trained against, evaluated.
     scripted_teams = query(run_dir, "SELECT id FROM players WHERE side = 'team' AND kind = 'scripted'")
-    assert len(scripted_teams) == len(PLAYERS["targeter"]) * len(PLAYERS["defender"]) == 6
+    assert len(scripted_teams) == len(PLAYERS["targeter"]) * len(PLAYERS["defender"])
     trained_against = query(run_dir, """
         SELECT DISTINCT m.team FROM matches m JOIN players t ON t.id = m.team
         WHERE m.source = 'training' AND t.kind = 'scripted'""")
     assert sorted(trained_against) == sorted(scripted_teams)
-    assert query(run_dir, "SELECT COUNT(DISTINCT attacker || '-' || team) FROM matches WHERE source = 'evaluation'")[0][0] == 4 * 8  # attackers: scripted, v0-v2; teams: 6 scripted, v0, v1
+    assert query(run_dir, "SELECT COUNT(DISTINCT attacker || '-' || team) FROM matches WHERE source = 'evaluation'")[0][0] == 4 * (len(scripted_teams) + 2)  # attackers: scripted, v0-v2; teams: the scripted ones, v0, v1
     assert (run_dir / "evaluation.md").read_text().count("\n| ") >= 24
     assert list((run_dir / "tensorboard").glob("events.out.tfevents.*"))
     last_checkpoint = query(run_dir, "SELECT path FROM checkpoints ORDER BY iteration DESC LIMIT 1")[0][0]
