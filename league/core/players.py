@@ -238,23 +238,12 @@ class NewPlayer(_Member):
         return Player(id=UNRECORDED_ID, **self.columns())
 
 
-@dataclass(frozen=True)
-class Player(_Member):
+@dataclass(frozen=True, kw_only=True)
+class Player(NewPlayer):
+    """A league member with its row: its columns, the id the store gave it and the iteration that created it."""
+
     id: int
-    side: Side
-    kind: Kind
-    version: int
-    reward_method: int | None = None
-    parent: int | None = None
-    scripted_attacker: str | None = None
-    scripted_targeter: str | None = None
-    scripted_defender: str | None = None
-    env_steps: int = 0
-    checkpoint: str | None = None
     created_iteration: int = 0
-    seed: int | None = None  # a best response's training seed
-    env_step_budget: int | None = None  # a best response's training budget (env steps asked for)
-    from_prior: bool | None = None  # a best response: started from the run's prior (True) or from scratch (False)
 
     @property
     def in_pool(self) -> bool:

@@ -203,6 +203,7 @@ PLAYER_COLUMNS = (
     "id, side, kind, version, reward_method, parent, scripted_attacker, scripted_targeter, "
     "scripted_defender, env_steps, checkpoint, created_iteration, seed, env_step_budget, from_prior"
 )
+PLAYER_FIELDS = tuple(PLAYER_COLUMNS.split(", "))
 
 
 class DamagedStoreError(ValueError):
@@ -398,7 +399,7 @@ class LeagueStore(_MeasurementTables):
         row = self.db.execute(f"SELECT {PLAYER_COLUMNS} FROM players WHERE id = ?", (player_id,)).fetchone()
         if row is None:
             raise KeyError(f"no player with id {player_id}")
-        return Player(*row)
+        return Player(**dict(zip(PLAYER_FIELDS, row)))
 
     def players(self, side: str | None = None, kind: str | None = None) -> list[Player]:
         rows = self.db.execute(
@@ -406,7 +407,7 @@ class LeagueStore(_MeasurementTables):
             "ORDER BY id",
             (side, kind),
         ).fetchall()
-        return [Player(*row) for row in rows]
+        return [Player(**dict(zip(PLAYER_FIELDS, row))) for row in rows]
 
     def set_player_steps(self, player_id: int, env_steps: int) -> None:
         self.db.execute("UPDATE players SET env_steps = ? WHERE id = ?", (env_steps, player_id))

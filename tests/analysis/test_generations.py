@@ -16,15 +16,15 @@ from league.reports.data import gather
 from league.state.store import LeagueStore
 from league.studies.curves import study
 
-A0 = Player(1, "attacker", "snapshot", 0, 2)
-A1 = Player(2, "attacker", "snapshot", 1, 2)
-A1_M3 = Player(3, "attacker", "snapshot", 1, 3)
-T0 = Player(4, "team", "snapshot", 0)
-PURSUIT = Player(5, "attacker", "scripted", 0, scripted_attacker="pure_pursuit")
-AVOID = Player(6, "team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit")
-STRAIGHT = Player(7, "team", "scripted", 0, scripted_targeter="straight", scripted_defender="pure_pursuit")
-TX1 = Player(8, "team", "exploiter_snapshot", 1)
-AX1 = Player(9, "attacker", "exploiter_snapshot", 1, 2)
+A0 = Player("attacker", "snapshot", 0, 2, id=1)
+A1 = Player("attacker", "snapshot", 1, 2, id=2)
+A1_M3 = Player("attacker", "snapshot", 1, 3, id=3)
+T0 = Player("team", "snapshot", 0, id=4)
+PURSUIT = Player("attacker", "scripted", 0, scripted_attacker="pure_pursuit", id=5)
+AVOID = Player("team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit", id=6)
+STRAIGHT = Player("team", "scripted", 0, scripted_targeter="straight", scripted_defender="pure_pursuit", id=7)
+TX1 = Player("team", "exploiter_snapshot", 1, id=8)
+AX1 = Player("attacker", "exploiter_snapshot", 1, 2, id=9)
 
 
 def test_each_lineage_against_each_scripted_opponent_by_version():

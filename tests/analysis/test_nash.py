@@ -80,8 +80,8 @@ def test_bad_matrices_are_refused():
 
 
 def test_league_meta_game_names_players_and_needs_every_pair():
-    attackers = [Player(1, "attacker", "snapshot", 1, 2), Player(2, "attacker", "scripted", 0, scripted_attacker="pure_pursuit")]
-    teams = [Player(3, "team", "snapshot", 1), Player(4, "team", "snapshot", 2)]
+    attackers = [Player("attacker", "snapshot", 1, 2, id=1), Player("attacker", "scripted", 0, scripted_attacker="pure_pursuit", id=2)]
+    teams = [Player("team", "snapshot", 1, id=3), Player("team", "snapshot", 2, id=4)]
     payoff = {(1, 3): (10, 10), (1, 4): (0, 10), (2, 3): (0, 10), (2, 4): (10, 10)}
     meta = meta_game(attackers, teams, payoff)
     assert meta.equilibrium.value == pytest.approx(0.5, abs=TOL)
@@ -145,11 +145,11 @@ def test_duplicated_columns_split_their_weight_anywhere():
 
 def test_the_meta_game_reports_each_sides_groups_with_their_vertex_weight_and_range():
     attackers = [
-        Player(1, "attacker", "snapshot", 1, 2), Player(2, "attacker", "snapshot", 2, 2),
-        Player(3, "attacker", "scripted", 0, scripted_attacker="lead_intercept"),
-        Player(4, "attacker", "exploiter_snapshot", 1, 2),
+        Player("attacker", "snapshot", 1, 2, id=1), Player("attacker", "snapshot", 2, 2, id=2),
+        Player("attacker", "scripted", 0, scripted_attacker="lead_intercept", id=3),
+        Player("attacker", "exploiter_snapshot", 1, 2, id=4),
     ]
-    teams = [Player(5, "team", "snapshot", 0), Player(6, "team", "snapshot", 1)]
+    teams = [Player("team", "snapshot", 0, id=5), Player("team", "snapshot", 1, id=6)]
     assert [weight_group(p) for p in attackers + teams] == [
         "learners", "learners", "scripted_and_v0", "exploiters", "scripted_and_v0", "learners"]
     # The tie game above; the exploiter wins less against both teams, so no optimal mixture plays it.

@@ -212,10 +212,10 @@ def test_who_wins_each_outcome_and_from_which_side():
 
 
 def test_the_paper_team_is_recognised_by_its_scripted_players():
-    paper = Player(1, "team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit")
-    other = Player(2, "team", "scripted", 0, scripted_targeter="straight", scripted_defender="pure_pursuit")
+    paper = Player("team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit", id=1)
+    other = Player("team", "scripted", 0, scripted_targeter="straight", scripted_defender="pure_pursuit", id=2)
     assert paper.is_paper_team and not other.is_paper_team
-    assert not Player(3, "team", "snapshot", 1).is_paper_team
+    assert not Player("team", "snapshot", 1, id=3).is_paper_team
 
 
 @pytest.mark.parametrize(

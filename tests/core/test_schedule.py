@@ -6,8 +6,8 @@ from league.config import RunConfig
 from league.core.players import Player
 from league.core.schedule import PhaseState, ProtocolSchedule, SelfPlaySchedule, schedule_of
 
-SCRIPTED = [Player(5, "team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit")]
-SNAPSHOTS = [Player(6, "team", "snapshot", 0), Player(7, "team", "snapshot", 1)]
+SCRIPTED = [Player("team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit", id=5)]
+SNAPSHOTS = [Player("team", "snapshot", 0, id=6), Player("team", "snapshot", 1, id=7)]
 
 
 def protocol() -> ProtocolSchedule:

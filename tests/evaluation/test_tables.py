@@ -31,11 +31,11 @@ def cells(table: str) -> dict[str, tuple[float, float, float]]:
 
 
 def test_the_league_pool_interval_counts_the_distinct_starts():
-    attacker = Player(1, "attacker", "snapshot", 1, reward_method=2)
+    attacker = Player("attacker", "snapshot", 1, reward_method=2, id=1)
     teams = [
-        Player(2, "team", "scripted", 0, scripted_targeter="straight", scripted_defender="pure_pursuit"),
-        Player(3, "team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit"),
-        Player(4, "team", "snapshot", 1),
+        Player("team", "scripted", 0, scripted_targeter="straight", scripted_defender="pure_pursuit", id=2),
+        Player("team", "scripted", 0, scripted_targeter="avoid_attacker", scripted_defender="pure_pursuit", id=3),
+        Player("team", "snapshot", 1, id=4),
     ]
     wins = (60, 100, 140)  # k = 3 teams on the same 200 starts: pooled rate 300 / 600 = 0.5
     table = cells(method_table([pair(attacker, t, w) for t, w in zip(teams, wins)]))

@@ -47,7 +47,7 @@ def test_one_shared_team_policy_plays_and_learns_for_both_t_and_d(algo):
     assert agents["targeter"] > 0 and agents["defender"] > 0
     assert sampled["team"] == agents["targeter"] + agents["defender"]
     # the team played every game, the attacker learner none: their env steps, exactly
-    team, attacker = Player(id=2, side="team", kind="learner", version=0), Player(1, "attacker", "learner", 0, 2)
+    team, attacker = Player(id=2, side="team", kind="learner", version=0), Player("attacker", "learner", 0, 2, id=1)
     env_steps = result["env_runners"]["num_env_steps_sampled"]
     assert learner_env_steps(result, [team, attacker]) == {"team": env_steps, "attacker-m2": 0}
     assert trained(result, "team") > 0 and trained(result, "attacker-m2") == 0
