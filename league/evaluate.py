@@ -99,14 +99,15 @@ def mixture_table(results: list[PairEvaluation], seed: int) -> str:
     return "\n".join(lines)
 
 
-def choose(players: list[Player], names: list[str] | None, store=None) -> list[Contestant]:
-    """The frozen players named (every one without ``names``), mixture players among them (from ``store``)."""
+def choose(players: list[Player], names: list[str] | None, store=None, mixture_seed: int = 0) -> list[Contestant]:
+    """The frozen players named (every one without ``names``), mixture players among them (from ``store``,
+    drawing from ``mixture_seed``)."""
     frozen = [p for p in players if not p.trains]
     if not names:
         return frozen
     by_name: dict[str, Contestant] = {p.name: p for p in frozen}
     for name in names:
-        mixture = find_mixture(store, name) if store is not None else None
+        mixture = find_mixture(store, name, seed=mixture_seed) if store is not None else None
         if mixture is not None:
             by_name[name] = mixture
     unknown = [n for n in names if n not in by_name]
@@ -138,7 +139,8 @@ def main(argv: list[str] | None = None) -> int:
             added = add_scripted(store, args.add_scripted)
         except ValueError as err:
             raise ValueError(f"--add-scripted {err}") from None
-        players = choose(store.players(), args.players and list(dict.fromkeys([*args.players, *added])), store)
+        names = args.players and list(dict.fromkeys([*args.players, *added]))
+        players = choose(store.players(), names, store, args.mixture_seed)
     except (RunDirError, MixtureError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -165,7 +167,6 @@ def main(argv: list[str] | None = None) -> int:
             run.game, args.run_dir.resolve(), pairs, episodes,
             Workers(workers, ev.cpus_per_worker, ev.custom_resources_per_worker, run.resources.torch_threads),
             games=args.games, progress=PairProgress(f"evaluating on {episodes} {args.games} games each"),
-            mixture_seed=args.mixture_seed,
         )
     except MissingModuleError as err:
         print(f"error: {err}", file=sys.stderr)

@@ -10,6 +10,8 @@ is the LP's vertex; each member's range comes from ``weight_range`` (two LPs per
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from typing import Any
 
 from league.analysis.nash import SUPPORT_THRESHOLD, league_meta_game
@@ -55,12 +57,12 @@ def final_mixtures(store: Any) -> list[Mixture]:
         return []
 
 
-def find_mixture(store: Any, name: str, side: str | None = None) -> Mixture | None:
+def find_mixture(store: Any, name: str, side: str | None = None, seed: int = 0) -> Mixture | None:
     """The mixture player ``name`` (of ``side``, if given) when ``name`` asks for one, else ``None`` (a player's
     name, for the caller to look up); ``MixtureError`` for a misspelt mixture, or one of the other side."""
     if not is_mixture_name(name):
         return None
-    mixture = store_mixture(store, name)
+    mixture = replace(store_mixture(store, name), seed=seed)
     if side is not None and mixture.side != side:
         raise MixtureError(f"{name} is a mixture of {mixture.side}s, not of {side}s")
     return mixture

@@ -134,6 +134,7 @@ class Mixture:
     weights: tuple[float, ...]  # the LP's vertex, summing to 1
     ranges: tuple[tuple[float, float], ...]  # each member's least and most weight over every optimal mixture
     value: float  # the side's meta-game value: its expected win rate against the other side's Nash mixture
+    seed: int = 0  # what its per-game draws are made from (``--mixture-seed``): the same seed, the same members
 
     def __post_init__(self) -> None:
         if not (len(self.members) == len(self.weights) == len(self.ranges)) or not self.members:

@@ -150,12 +150,12 @@ def agents_of(player: Player, run_dir: Path, load=None) -> dict[str, Controller]
     return {agent: LearnedAgent(module, agent) for agent in agents}
 
 
-def lineups_of(contestant: Contestant, run_dir: Path, games: np.ndarray, seed: int, load=None) -> tuple[list[Lineup], list[str]]:
+def lineups_of(contestant: Contestant, run_dir: Path, games: np.ndarray, load=None) -> tuple[list[Lineup], list[str]]:
     """Module id and policy of each agent of ``contestant``'s side, and the player that plays, for each fixed game
-    of ``games`` (indices): a mixture's member drawn for the game, else the player itself."""
+    of ``games`` (indices): a mixture's member drawn for the game (from its seed), else the player itself."""
     if not isinstance(contestant, Mixture):
         return [policies_of(contestant, run_dir, load)] * len(games), [contestant.name] * len(games)
-    drawn = contestant.draw(seed, games)
+    drawn = contestant.draw(contestant.seed, games)
     loaded = {k: policies_of(contestant.members[k], run_dir, load) for k in np.unique(drawn)}
     return [loaded[k] for k in drawn], [contestant.members[k].name for k in drawn]
 
@@ -189,13 +189,13 @@ class PairEvaluation:
 
 def evaluate_pair(
     game: GameConfig, attacker: Contestant, team: Contestant, episodes: int, run_dir: Path, start: int = 0, load=None,
-    games: str = "dev", mixture_seed: int = 0,
+    games: str = "dev",
 ) -> PairEvaluation:
     """Games ``start .. start + episodes`` of the fixed ``games`` (``dev`` or ``test``), ``attacker`` vs ``team``
-    (a mixture draws its member of each game from ``mixture_seed`` and the game's index)."""
+    (a mixture draws its member of each game from its seed and the game's index)."""
     indices = np.arange(start, start + episodes)
     (attackers, attacker_members), (teams, team_members) = (
-        lineups_of(side, run_dir, indices, mixture_seed, load) for side in (attacker, team))
+        lineups_of(side, run_dir, indices, load) for side in (attacker, team))
     policies = [{**a, **t} for a, t in zip(attackers, teams)]
     result = play_fixed_games(game, evaluation_scenarios(game.scenario, start + episodes, games)[start:], policies)
     members = {side.side: drawn for side, drawn in ((attacker, attacker_members), (team, team_members))
@@ -208,12 +208,12 @@ Progress = Callable[[int, int], None]  # (pairs done, pairs in all), called afte
 
 def evaluate_here(
     game: GameConfig, run_dir: Path, pairs: list[tuple[Contestant, Contestant]], episodes: int, games: str = "dev",
-    progress: Progress | None = None, mixture_seed: int = 0,
+    progress: Progress | None = None,
 ) -> list[PairEvaluation]:
     """Every pair on the first ``episodes`` fixed ``games``, in this process."""
     results = []
     for a, t in pairs:
-        results.append(evaluate_pair(game, a, t, episodes, run_dir, games=games, mixture_seed=mixture_seed))
+        results.append(evaluate_pair(game, a, t, episodes, run_dir, games=games))
         if progress:
             progress(len(results), len(pairs))
     return results
@@ -390,16 +390,15 @@ def evaluate_pairs(
     pool: EvaluationPool | None = None,
     games: str = "dev",
     progress: Progress | None = None,
-    mixture_seed: int = 0,
 ) -> list[PairEvaluation]:
     """Every pair on the first ``episodes`` fixed ``games``: on ``pool``, on ``workers`` new actors (a count,
     or ``Workers``), or here (``progress``: told after each pair). Pairs with a mixture (its members drawn
-    from ``mixture_seed``) are played here, after the others, and put back in their places."""
+    from its seed) are played here, after the others, and put back in their places."""
     mixed = [k for k, (a, t) in enumerate(pairs) if isinstance(a, Mixture) or isinstance(t, Mixture)]
     if mixed:
         plain = [pair for k, pair in enumerate(pairs) if k not in mixed]
         done = evaluate_pairs(game, run_dir, plain, episodes, workers, pool, games) if plain else []
-        here = evaluate_here(game, run_dir, [pairs[k] for k in mixed], episodes, games, mixture_seed=mixture_seed)
+        here = evaluate_here(game, run_dir, [pairs[k] for k in mixed], episodes, games)
         by_place = dict(zip(mixed, here)) | dict(zip([k for k in range(len(pairs)) if k not in mixed], done))
         if progress:
             progress(len(pairs), len(pairs))

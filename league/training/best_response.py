@@ -32,7 +32,7 @@ command. The curve points stay with the scratch run (they are printed, not store
 every member, and each training episode's opponent is one member drawn with the mixture's
 weights from (the iteration's match-plan seed, the episode id): a ``MatchPlan`` whose opponents
 are the members. It is evaluated against the mixture (a member drawn per fixed game,
-``mixture_seed``). A mixture is no league member, so the best response's row has no parent;
+its seed, ``--mixture-seed``). A mixture is no league member, so the best response's row has no parent;
 the store's meta entry ``MIXTURE_BEST_RESPONSES`` names the mixture it was trained against,
 its seed and its result.
 
@@ -261,10 +261,9 @@ class Budget:
 
 def exploit(
     run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Contestant, seeds: list[int], budget: Budget, say=print,
-    mixture_seed: int = 0,
 ) -> Exploitability:
     """Train, evaluate and record one best response per seed; their results against ``exploited`` (a
-    mixture: a member drawn per fixed game from ``mixture_seed``), with the league's baselines (which
+    mixture: a member drawn per fixed game from its seed), with the league's baselines (which
     best responses do not change) and each one's learning curve."""
     env_steps, episodes, from_prior = budget.env_steps, budget.episodes, budget.from_prior
     from league.evaluation.engine import evaluate_pairs
@@ -302,14 +301,14 @@ def exploit(
         last = store.last_iteration()
         iteration = last["iteration"] if last else 0
         try:  # a module without its player row is removed: the database and players/ stay in step
-            [played] = evaluate_pairs(run.game, run_dir, [pair], episodes, mixture_seed=mixture_seed)
+            [played] = evaluate_pairs(run.game, run_dir, [pair], episodes)
             with store.transaction():
                 player = store.add_player(iteration, new)
                 if isinstance(exploited, Mixture):  # no league result: what it won goes into the meta table
                     store.set_meta(MIXTURE_BEST_RESPONSES, mixture_best_responses(store) + [{
                         "player": player.name, "mixture": exploited.name, "seed": seed, "budget": env_steps,
                         "from_prior": from_prior, "wins": wins_of(side, played.attacker_wins, played.games),
-                        "games": played.games, "mixture_seed": mixture_seed,
+                        "games": played.games, "mixture_seed": exploited.seed,
                     }])
                 else:
                     # the provisional player's id becomes the new row's

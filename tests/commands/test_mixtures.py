@@ -104,14 +104,14 @@ def test_a_mixture_plays_each_game_as_its_drawn_member(mixed_run):
     team = mixture(mixed_run, "nash-team")
     # A mixture of one member plays exactly as that member: the same outcomes, steps and returns, game for game.
     alone = Mixture("nash-team", "team", 4, (players["team-v1"],), (1.0,), ((1.0, 1.0),), 0.5)
-    as_mixture = evaluate_pair(game, attacker, alone, 12, mixed_run, mixture_seed=5)
+    as_mixture = evaluate_pair(game, attacker, replace(alone, seed=5), 12, mixed_run)
     as_member = evaluate_pair(game, attacker, players["team-v1"], 12, mixed_run)
     np.testing.assert_array_equal(as_mixture.result.outcome, as_member.result.outcome)
     np.testing.assert_array_equal(as_mixture.result.steps, as_member.result.steps)
     np.testing.assert_array_equal(as_mixture.result.returns, as_member.result.returns)
     # Two members, games 3 to 14: each game is the one its drawn member plays alone (the draw of the game's own
     # index, not of its place in the slice).
-    mixed = evaluate_pair(game, attacker, team, 12, mixed_run, start=3, mixture_seed=5)
+    mixed = evaluate_pair(game, attacker, replace(team, seed=5), 12, mixed_run, start=3)
     drawn = [team.member_of(5, g).name for g in range(3, 15)]
     assert mixed.members == {"team": drawn} and len(set(drawn)) == 2
     alone_games = {name: evaluate_pair(game, attacker, players[name], 12, mixed_run, start=3) for name in set(drawn)}
