@@ -6,7 +6,7 @@ imports a command (the modules at the top of ``league/`` with a ``__main__`` blo
 the store, Ray or RLlib; ``ray.rllib`` only in ``league/rllib/``; who won only in
 ``league/core/payoff.py``; training rewards assembled only in ``league/rollout/``; RLlib's ``model_config``
 read only by ``league/rllib/module_settings.py``; the README's layout table lists the packages,
-docs/architecture.md's every module.
+docs/architecture.md's every module; no class in ``league/`` over 250 lines, no function over 8 parameters.
 
 Each rule is a scan of the source files (``envs/``, ``league/``, ``bench/``) and a test
 that the scan finds a planted violation, so a rule that stopped matching would fail.
@@ -439,3 +439,38 @@ def test_the_layout_scan_finds_a_missing_and_a_stale_row(tmp_path):
     listed, tree = layout_table_paths((root / "README.md").read_text()), tree_paths(root)
     assert tree - listed == {"league/core/pfsp.py"} and listed - tree == {"league/payoff.py"}
     assert tree_paths(root, packages_only=True) == {"league/__init__.py", "league/run.py", "league/core/"}
+
+
+# Sizes a reader takes in at once (issue "The league decides, the coordinator executes").
+MAX_CLASS_LINES = 250
+MAX_PARAMETERS = 8  # not counting self or cls
+
+
+def oversized(root: Path) -> list[str]:
+    """``path:line: what`` of every class over ``MAX_CLASS_LINES`` lines and every function over
+    ``MAX_PARAMETERS`` parameters in ``league/``."""
+    found = []
+    for path in sorted((root / "league").rglob("*.py")):
+        relative = path.relative_to(root).as_posix()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ClassDef) and node.end_lineno - node.lineno + 1 > MAX_CLASS_LINES:
+                found.append(f"{relative}:{node.lineno}: class {node.name}, {node.end_lineno - node.lineno + 1} lines")
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                args = node.args
+                names = [a.arg for a in args.posonlyargs + args.args + args.kwonlyargs]
+                count = len(names) - (names[:1] in (["self"], ["cls"]))
+                if count > MAX_PARAMETERS:
+                    found.append(f"{relative}:{node.lineno}: {node.name}, {count} parameters")
+    return found
+
+
+def test_no_class_over_250_lines_and_no_function_over_8_parameters():
+    assert oversized(ROOT) == []
+
+
+def test_the_size_scan_finds_a_long_class_and_a_long_signature(tmp_path):
+    long_class = "class Big:\n" + "    x = 1\n" * MAX_CLASS_LINES
+    method = "class Ok:\n    def f(self, a, b, c, d, e, f, g, h):\n        pass\n"  # self not counted: 8
+    function = "def g(a, b, c, d, e, f, g, h, *, i):\n    pass\n"
+    root = plant(tmp_path, {"league/big.py": long_class, "league/ok.py": method, "league/g.py": function})
+    assert [line.split(": ", 1)[1] for line in oversized(root)] == ["class Big, 251 lines", "g, 9 parameters"]
