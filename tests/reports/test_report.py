@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 from envs.agents import ATTACKER, DEFENDER
-from league.reports.browser_check import check_page, find_chromium
+from league.reports.page_check import check_page, find_chromium
 from league.evaluate import main as evaluate_main
 from league.analysis.statistics import wilson_interval
 from league.core.payoff import aggregate
