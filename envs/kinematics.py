@@ -187,18 +187,6 @@ def turned(headings: np.ndarray, change: np.ndarray) -> np.ndarray:
     return np.stack((yaw, pitch), axis=-1)
 
 
-def turn(
-    headings: np.ndarray,
-    yaw_change: np.ndarray,
-    pitch_change: np.ndarray,
-    max_yaw: float,
-    max_pitch: float,
-    max_angle: np.ndarray | float = np.inf,
-) -> np.ndarray:
-    """Heading after a (yaw, pitch) command within the turn limits (steps 1 to 3 above)."""
-    return turned(headings, limit_turn(headings, yaw_change, pitch_change, max_yaw, max_pitch, max_angle))
-
-
 @dataclass(frozen=True)
 class Arcs:
     """The circular arcs bodies fly in one step (step 4 above), batched over leading axes."""

@@ -88,7 +88,7 @@ def policy_input(observation: np.ndarray, state: np.ndarray) -> np.ndarray:
     return np.concatenate((observation, state), axis=-1)
 
 
-# TorchScript compiles these two from the exported policies (league/evaluation/export.py) and knows no
+# TorchScript compiles these two from the exported policies (league/evaluation/exported_policy.py) and knows no
 # TypeVar nor Protocol: their array argument stays unannotated, which TorchScript reads as a Tensor.
 def split_policy_input(inputs, own_size: int):  # type: ignore[no-untyped-def]
     """``(own observation, global state)`` of policy inputs: numpy arrays or torch tensors, any leading axes."""

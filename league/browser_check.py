@@ -5,12 +5,7 @@ besides itself (a self-contained page requests none), counts the plotly figures 
 WebGL canvases of the 3D scenes, and saves a screenshot of the first trajectory scene
 (``--screenshot``). Exit code 1 when the page shows an error, fetches anything or lacks
 a 3D scene (a ``failed:`` line on stderr for each), 2 when no Chromium is installed
-(Debian: ``apt-get install chromium``).
-
-Chromium is driven through the DevTools protocol over a pipe (``--remote-debugging-pipe``:
-JSON messages ending in NUL on file descriptors 3 and 4), so nothing but the standard
-library is needed. Its console log on stderr cannot tell an error from a warning; the
-protocol can.
+(Debian: ``apt-get install chromium``). How Chromium is driven: ``league.reports.page_check``.
 """
 
 from __future__ import annotations
@@ -19,7 +14,7 @@ import sys
 from pathlib import Path
 
 from league.cli import command_parser
-from league.reports.browser_check import CHROMIUM_NAMES, check_page, find_chromium
+from league.reports.page_check import CHROMIUM_NAMES, check_page, find_chromium
 
 
 def main(argv: list[str] | None = None) -> int:

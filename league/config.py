@@ -51,41 +51,26 @@ class PPOSettings(Strict):
     lambda_: float = Field(0.95, ge=0, le=1)
     """GAE ``lambda`` (the attacker's, and the team's unless ``team_lambda_`` is set)."""
     team_gamma: float | None = Field(None, gt=0, le=1)
-    """Discount of the team learner (T and D); ``None``: ``gamma``. Against lead intercept the
-    team loses nearly every game at first and its per-step rewards (Eq. 10, 11) are small next to
-    a terminal reward, so with ``gamma`` 0.99 a loss put off by ``k`` steps costs only
-    ``0.99 ** k`` of one taken now: it learned to flee and stall instead of winning (docs/results/learning.md,
-    "The team's learning"). Needs ``resources.sampler: fast`` (RLlib's own GAE has one discount for every module)."""
+    """Discount of the team learner (T and D); ``None``: ``gamma``. Why the team needs a longer horizon:
+    [learning.md](results/learning.md#the-teams-learning). Needs ``resources.sampler: fast``."""
     team_lambda_: float | None = Field(None, ge=0, le=1)
-    """GAE ``lambda`` of the team learner; ``None``: ``lambda_``. Same sampler caveat."""
+    """GAE ``lambda`` of the team learner; ``None``: ``lambda_``. Needs ``resources.sampler: fast``."""
     targeter_shaping: float = Field(0.0, ge=0)
-    """``k``: in training, T's rewards get the potential-based shaping ``gamma Phi(s') - Phi(s)``
-    with ``Phi = -k |T ter|`` (``league.rollout.training_reward``): ``k`` per unit T
-    closes on the terminal, paid back when the game ends, so it changes no policy's ranking.
-    Without it T never found the terminal sphere (radius ``v_T``, one step of T) by exploring,
-    and trained teams won only by D's interceptions (docs/results/learning.md, "The team's learning"). At
-    ``k = 3`` the flagship's teams still did not fly to the terminal against an attacker that
-    flies off; at ``k = 30`` the smoke league's did, in 183 to 194 of 200 games, while the
-    flagship's team got worse against every attacker (docs/results/flagship.md).
-    Returns in curves, evaluations and metrics stay unshaped. Needs ``resources.sampler: fast``."""
+    """``k`` of T's potential-based shaping of its training rewards, ``Phi = -k |T ter|``; 0: none. Without it T did not
+    find the terminal ([learning.md](results/learning.md#the-teams-learning)). Needs ``resources.sampler: fast``."""
     defender_shaping: float = Field(0.0, ge=0)
-    """``k``: in training, D's rewards get the potential-based shaping ``gamma Phi(s') - Phi(s)``
-    with ``Phi = -k |D A|``, as ``targeter_shaping`` does for T: ``k`` per unit D closes on A,
-    paid back when the game ends. Needs ``resources.sampler: fast``."""
+    """``k`` of D's potential-based shaping of its training rewards, ``Phi = -k |D A|``, as ``targeter_shaping``; 0:
+    none. Needs ``resources.sampler: fast``."""
     attacker_win_reward: float = Field(0.0, ge=0)
-    """In training only, added to the attacker's reward on the last step of each game: ``+``
-    when it wins, ``-`` when it loses, on top of ``game.terminal_reward`` (which both sides
-    get). Method 2's per-step reward (Eq. 8) pays for flying along lead intercept's reference
-    direction, so with the game's terminal reward alone the method-2 attacker learned to fly
-    about as lead intercept does and won about as often (docs/results/flagship.md). Returns
-    in curves, evaluations and metrics stay the game's. Needs ``resources.sampler: fast``."""
+    """Added to the attacker's training reward on a game's last step, ``+`` on a win, ``-`` on a loss, on top of
+    ``game.terminal_reward``; 0: none. Needs ``resources.sampler: fast``. Without it the method-2 attacker flew about as
+    lead intercept does (``git show 2d1e270^:docs/results/flagship.md``, "How the settings were chosen")."""
     attacker_win_reward_methods: list[Literal[1, 2, 3]] | None = None
     """The reward methods whose attackers get ``attacker_win_reward``; default: every method.
     A league of several methods (``league.attacker_reward_methods``) may pay it to some only."""
     team_reward: Literal["own", "shared"] = "own"
-    """What T and D learn from: ``own``, each its own reward (Eq. 10, 11); ``shared``, each the
-    team's, the sum of both per step (what the team return measures), so that D is paid for
-    the steps of T that its interception saves. Needs ``resources.sampler: fast``."""
+    """What T and D learn from: ``own``, each its own reward (Eq. 10, 11); ``shared``, each the team's, the sum of both
+    per step, so D is paid for the steps of T its interception saves. Needs ``resources.sampler: fast``."""
     clip_param: float = Field(0.2, gt=0)
     """PPO's clip range of the probability ratio."""
     entropy_coeff: float = Field(0.0, ge=0)
@@ -98,51 +83,29 @@ class PPOSettings(Strict):
     minibatch_size: int = Field(500, ge=8)
     """Rows (or env steps, ``minibatch_counts``) per gradient step."""
     minibatch_counts: Literal["rows", "env_steps"] = "rows"
-    """What ``minibatch_size`` counts. ``rows``: training rows, for every learner. ``env_steps``:
-    the rows of that many env steps, so the team learner, whose module plays T and D (two rows
-    per env step against the attacker's one), learns in minibatches of ``2 * minibatch_size``
-    rows and takes as many gradient steps per env step as the attacker instead of twice as
-    many. Needs ``resources.sampler: fast`` (RLlib's PPO has one minibatch size)."""
+    """What ``minibatch_size`` counts: ``rows``; or ``env_steps``, the rows of that many env steps, so the team (two
+    rows per env step) takes as many gradient steps as the attacker. Needs ``resources.sampler: fast``."""
     num_epochs: int = Field(5, ge=1)
     """Passes over each training batch."""
     hidden: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [64, 64], min_length=1)
     """Hidden layer sizes of both the policy and the value network (the attacker's, and the
     team's unless ``team_hidden`` is set)."""
     team_hidden: list[Annotated[int, Field(ge=1)]] | None = Field(None, min_length=1)
-    """Hidden layer sizes of the team's policy and value networks; ``None``: ``hidden``. Against
-    one frozen attacker, ``[256, 256]`` made the team beat the best scripted team where
-    ``[64, 64]`` did not, at 4 to 5 times the training cost (docs/results/learning.md)."""
+    """Hidden layer sizes of the team's policy and value networks; ``None``: ``hidden``. What ``[256, 256]`` bought, at
+    what cost: [learning.md](results/learning.md)."""
     attacker_prior: Literal["none", "lead_intercept"] = "none"
-    """``lead_intercept``: the attacker's policy mean is lead intercept's turn
-    (``envs.scripted``, computed from the attacker's own observation) plus what its network
-    outputs, so the untrained attacker plays lead intercept and training learns the
-    correction (residual policy learning). ``none``: the network's output alone, as in the
-    paper. Needs ``game.observation: rich`` and ``game.action_mode: relative``."""
+    """``lead_intercept``: the policy mean is lead intercept's turn plus the network's output, so the untrained attacker
+    plays lead intercept; ``none``: the network's. Needs ``game.observation: rich``, ``game.action_mode: relative``."""
     team_prior: Literal["none", "straight+pure_pursuit", "avoid_attacker+pure_pursuit",
                         "avoid_oncoming_attacker+pure_pursuit"] = "none"
-    """A scripted team (``envs.scripted``) whose turn, computed from T's or D's own observation,
-    is the team's policy mean plus what its network outputs, so the untrained team plays it and
-    training learns the correction: ``avoid_attacker+pure_pursuit`` (the paper's team: T flies
-    home while it is safe from A, else hides behind D; D flies at A),
-    ``avoid_oncoming_attacker+pure_pursuit`` (T hides only while A flies toward it) or
-    ``straight+pure_pursuit`` (T always flies home). ``none``: the network's output alone.
-    Without a prior, teams trained against attackers that come at T did not fly T home when the
-    attacker stayed away, and lost nearly every game to ``evade_defender``; with the paper's
-    team's, 0.106 to 0.141 of them (docs/results/selfplay-league.md). Needs
-    ``game.observation: rich`` and ``game.action_mode: relative``."""
+    """A scripted team (``envs.scripted``) whose turn plus the team's network output is its policy mean, so untrained it
+    plays that team ([training.md](training.md)); ``none``: the network alone. Needs as ``attacker_prior`` does."""
     attacker_heading_cosines: bool = False
-    """The attacker's network also reads two cosines computed from its observation: T's heading
-    against T's line to the terminal, D's heading against D's line to A
-    (``league.rllib.modules.HeadingCosines``). They tell the scripted teams apart: a
-    straight-flying T's first cosine is 1, a pursuing D's second. The observation holds them
-    already, as quotients of its numbers (docs/results/selfplay-league.md). Needs
-    ``game.observation: rich``."""
+    """The attacker's network also reads two cosines of its observation: T's heading against T's line to the terminal,
+    D's against D's line to A (``league.rllib.modules.HeadingCosines``). Needs ``game.observation: rich``."""
     bf16: bool = False
-    """Compute the networks' forward and backward passes in the learner's update under
-    ``torch.autocast`` to bfloat16 where the CPU multiplies bfloat16 natively (AMX or AVX-512
-    BF16; ``league.rllib.compat.native_bf16``), float32 elsewhere (the run says which when it
-    starts); the loss, the gradients and Adam stay float32, and sampling stays float32. Pays at
-    wide networks only (docs/performance.md). Needs ``resources.sampler: fast``."""
+    """The learner's forward and backward passes in bfloat16 where the CPU has it natively, else float32; it pays at
+    wide networks only ([performance.md](performance.md)). Needs ``resources.sampler: fast``."""
 
     def minibatch(self, side: Side) -> int:
         """Rows per minibatch of the ``side`` learner's updates."""
@@ -184,15 +147,11 @@ class Resources(Strict):
     """Custom Ray resources each env runner needs, e.g. ``{sampler: 1}`` to place runners
     on the nodes started with that resource (``ray start --resources``)."""
     sampler: Literal["fast", "batched", "standard"] = "fast"
-    """``fast``: every runner steps its games as arrays (``league.rllib.env_runner``) and
-    PPO's training batch is built from those arrays (``league.rollout.train_batch``); ``batched``:
-    the same games handed to RLlib's learner pipeline as episodes; ``standard``: RLlib's
-    ``MultiAgentEnvRunner``, one game at a time. All three train the same PPO; the last
-    two are kept for comparison and debugging."""
+    """``fast``: runners step their games as arrays and build PPO's batch from them; ``batched``: those games as RLlib
+    episodes; ``standard``: RLlib's ``MultiAgentEnvRunner``. The same PPO; the last two are kept to compare."""
     torch_threads: int | None = Field(None, ge=1)
-    """Torch threads in every process that runs torch (driver and learner, env runners,
-    evaluation workers); by default the CPUs given to that process, at least 1 (RLlib leaves
-    torch's default, all cores, whose threads then compete with the other processes)."""
+    """Torch threads in every process that runs torch (driver, env runners, evaluation workers); ``None``: the CPUs
+    given to that process, at least 1."""
 
     def threads_for(self, cpus: float) -> int:
         """Torch threads of a process that was given ``cpus`` CPUs."""
@@ -226,10 +185,8 @@ class ProtocolPhase(Strict):
     """...or, given instead, once this many env steps were sampled in it (a budget that does not
     depend on how long the games last)."""
     opponents: Literal["scripted", "latest", "scripted_and_latest", "scripted_and_snapshots"] = "scripted"
-    """``scripted``: the configured scripted players; ``latest``: the other side's newest snapshot
-    (the paper's phase 2); ``scripted_and_latest``: both, weighted by PFSP;
-    ``scripted_and_snapshots``: the scripted players and every snapshot of the other side, its
-    untrained version 0 included, weighted by PFSP."""
+    """``scripted``: the scripted players; ``latest``: the other side's newest snapshot (the paper's phase 2); by PFSP,
+    ``scripted_and_latest``: both, ``scripted_and_snapshots``: the scripted players and every snapshot."""
 
     @model_validator(mode="after")
     def _one_budget(self) -> "ProtocolPhase":
@@ -257,52 +214,28 @@ class LeagueSettings(Strict):
     """Self-play mode: the team's phases end after this many env steps instead (default:
     ``phase_env_steps``); an attacker phase's budget is shared by its attackers, the team's is its own."""
     pfsp: Literal["squared", "variance", "uniform", "nash"] = "squared"
-    """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat; or ``nash``,
-    PSRO's rule: the other side's Nash mixture in the meta-game of every frozen player (snapshots
-    and scripted players, each pair's newest evaluation on the fixed games; a pair not evaluated
-    yet, such as a new snapshot's, is played when a match plan first needs it), whatever the
-    learner's win rates."""
+    """Opponent weighting on the learner's win rate x: (1 - x)^2, x (1 - x) or flat; or ``nash``, PSRO's rule: the other
+    side's Nash mixture in the meta-game of the frozen players ([training.md](training.md))."""
     scripted_share: dict[Side, Annotated[float, Field(ge=0, le=1)]] = Field(default_factory=dict)
-    """Per side, the share of its learners' games held for the other side's scripted players,
-    spread over them by the ``pfsp`` weighting; PFSP draws the rest over the whole pool,
-    scripted players included. ``{attacker: 0.5}``: the attackers meet the scripted teams in at
-    least half their games however many snapshots the pool holds. Empty: PFSP alone."""
+    """Per side, the share of its learners' games held for the other side's scripted players, spread by
+    ``scripted_weighting``; PFSP draws the rest over the whole pool. Empty: PFSP alone."""
     scripted_weighting: Literal["pfsp", "uniform"] = "pfsp"
-    """How ``scripted_share`` is spread over the scripted players: by the ``pfsp`` weighting, or
-    evenly (``uniform``), so that a scripted player the learner already beats is still met:
-    ``squared`` gives one it always beats no games, and the learner may unlearn it."""
+    """How ``scripted_share`` is spread over the scripted players: by the ``pfsp`` weighting, or evenly (``uniform``),
+    so that one the learner always beats (no games under ``squared``) is still met."""
     attacker_reward_methods: list[Literal[1, 2, 3]] | None = None
     """Train one attacker per listed reward method side by side; default: ``game.attacker_reward`` only."""
     exploiters: list[Side] = Field(default_factory=list)
-    """Self-play mode: the sides that get exploiters (AlphaStar's main exploiters), e.g. ``[team]``,
-    ``[attacker, team]``; empty: none. Each learner of a listed side gets an exploiter twin (same
-    side, same reward method) that trains in that side's phases on as many games as its learner
-    (drawn per episode: the exploiters together play half of the phase's games), against only
-    the other side's newest snapshots (its current learners; in the first phase the team's
-    untrained version 0). It keeps training from phase to phase (unless
-    ``exploiters_restart``). At each phase end it is frozen like the learner (``team-exploiter-v1``, kind
-    ``exploiter_snapshot``) into its side's pool, where the other side's learner meets it.
-    The phase-end rule leaves the exploiters' games and env steps out (it measures the
-    learners' progress as without exploiters), so a phase with exploiters samples about
-    twice the env steps."""
+    """Self-play mode: the sides whose learners each get an exploiter twin (AlphaStar's main exploiter), trained against
+    the other side's newest snapshots, frozen into its pool at each phase end ([training.md](training.md))."""
     exploiter_phases: Literal["all", "final", "all_and_final"] = "all"
-    """Self-play mode, with ``exploiters``: ``all``: the exploiters train in every phase of their
-    side, beside its learners, as above; ``final``: only in one more phase after the
-    ``selfplay_phases``, in which nothing else trains (its budget is ``phase_env_steps``, shared
-    by the exploiters). Each exploiter starts it from its untrained policy and trains against
-    the other side's final snapshots: a fresh best response to the league's final players, frozen
-    into the meta-game as ``-exploiter-v1``; ``all_and_final``: both, each exploiter starting
-    the final phase where its previous phase left it (see ``exploiters_restart``). ``final`` and
-    ``all_and_final`` need ``exploiters`` to list only the side that follows the last phase
-    (``attacker`` after an even number of phases)."""
+    """With ``exploiters``: ``all``, they train in every phase of their side; ``final``, only in one more phase after
+    the self-play phases, each from its untrained policy, against the final snapshots; ``all_and_final``, both."""
     exploiters_restart: bool = False
-    """Self-play mode: each exploiter starts each of its phases after the first from its
-    learner's version 0 (the untrained policy, ``attacker-m2-v0``), with a new optimizer state,
-    as AlphaStar resets its main exploiters; ``false``: it trains on from phase to phase."""
+    """Self-play mode: each exploiter starts each of its phases after the first from its learner's version 0, with a new
+    optimizer state, as AlphaStar resets its main exploiters; ``false``: it trains on from phase to phase."""
     frozen_players_explore: bool = True
-    """In training, frozen snapshots sample their actions from their policy (``true``) or play
-    its mean (``false``), as every player does in evaluation. ``false`` trains a learner against
-    exactly the players it is then measured against. Not on ``resources.sampler: standard``."""
+    """In training, frozen snapshots sample their actions (``true``) or play their policy's mean (``false``, as every
+    player does in evaluation). ``false`` needs ``resources.sampler: fast`` or ``batched``."""
     scripted_attackers: list[str] = Field(default_factory=lambda: ["lead_intercept"])
     """Scripted attackers in the league (``envs.scripted``): training opponents of the team and members of the meta-game."""
     scripted_teams: list[ScriptedTeam] = Field(default_factory=lambda: [ScriptedTeam()])
@@ -356,9 +289,8 @@ class EvaluationSettings(Strict):
     every_iterations: int = Field(0, ge=0)
     """Also evaluate the learners against their opponents every this many iterations (0: only at the end)."""
     curve_every_env_steps: int = Field(20_000, ge=0)
-    """Learning curves: each time a learner passes another multiple of this many env steps, it is
-    played (deterministic actions, in the driver) against its curve opponents on the first
-    ``curve_episodes`` fixed games and the result stored (``league.evaluation.learning_curves``); 0: no curves."""
+    """Learning curves: each time a learner passes another multiple of this many env steps, it plays its curve opponents
+    on the first ``curve_episodes`` dev games (``league.evaluation.learning_curves``); 0: no curves."""
     curve_episodes: int = Field(200, ge=1)
     """Fixed evaluation games per learning-curve point (and per reference line)."""
 

@@ -31,7 +31,7 @@ import sys
 from pathlib import Path
 
 from league.cli import command_parser
-from league.evaluation.export import FORMATS, ExportError, build, export
+from league.evaluation.exported_policy import FORMATS, ExportError, build, export
 
 
 def main(argv: list[str] | None = None) -> int:

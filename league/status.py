@@ -14,7 +14,7 @@ from pathlib import Path
 from rich.console import Console
 
 from league.cli import command_parser
-from league.reports.status import (
+from league.reports.run_standing import (
     exploitability_section, league_table, nash_section, next_step, run_line, status_json,
 )
 from league.state.run_dir import RunDirError, open_run, run_state, usable_checkpoints

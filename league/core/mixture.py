@@ -15,7 +15,7 @@ optimal mixture gives it) says how much of its weight is the game's and how much
 caller's own sequence) with one member, fixed by ``(seed, side, g)`` alone: the same seed gives
 the same members whatever the batching, the order or the slices the games are played in. With
 ``P = 2**31 - 1`` (prime) and integer arithmetic only (so torch, ONNX and NumPy compute the same
-numbers; ``league.evaluation.export`` builds it into the exported module):
+numbers; ``league.evaluation.exported_policy`` builds it into the exported module):
 
 1. ``key = mix(mix(mix(seed) + stream) + g)``, ``stream`` 0 for attackers and 1 for teams (so a
    mixture against a mixture draws its two sides independently);

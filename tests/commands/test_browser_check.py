@@ -3,7 +3,7 @@
 import pytest
 
 from league import browser_check
-from league.reports.browser_check import PageCheck, find_chromium
+from league.reports.page_check import PageCheck, find_chromium
 
 
 @pytest.mark.parametrize("check, reason", [

@@ -7,7 +7,7 @@ import pytest
 
 from envs.config import GameConfig
 from envs.core import BatchedGame
-from envs.kinematics import TURN_ANGLE_TOLERANCE, Arcs, heading_vectors, limit_turn, move, turn, turned
+from envs.kinematics import TURN_ANGLE_TOLERANCE, Arcs, heading_vectors, limit_turn, move, turned
 
 V = np.array([0.18, 0.13, 0.18])
 L = 0.1
@@ -40,7 +40,8 @@ def test_speed_is_constant_along_the_arc():
 def test_turn_never_exceeds_the_limits():
     rng = np.random.default_rng(1)
     headings = random_headings(rng, 1000)
-    new_headings = turn(headings, rng.uniform(-10, 10, (1000, 3)), rng.uniform(-10, 10, (1000, 3)), MAX_YAW, MAX_PITCH, V / L)
+    change = limit_turn(headings, rng.uniform(-10, 10, (1000, 3)), rng.uniform(-10, 10, (1000, 3)), MAX_YAW, MAX_PITCH, V / L)
+    new_headings = turned(headings, change)
     yaw_change = np.abs((new_headings[..., 0] - headings[..., 0] + np.pi) % (2 * np.pi) - np.pi)
     assert np.all(yaw_change <= MAX_YAW + 1e-9)
     assert np.all(np.abs(new_headings[..., 1] - headings[..., 1]) <= MAX_PITCH + 1e-9)
@@ -66,14 +67,16 @@ def test_zero_turn_is_a_straight_line():
 
 def test_yaw_wraps_into_zero_two_pi():
     headings = np.array([[[1.9 * np.pi, 0.0], [0.1, 0.0], [0.0, 0.0]]])
-    commanded = turn(headings, np.array([[0.5 * np.pi, -0.5 * np.pi, 0.0]]), np.zeros((1, 3)), MAX_YAW, MAX_PITCH)
+    yaw_command = np.array([[0.5 * np.pi, -0.5 * np.pi, 0.0]])
+    commanded = turned(headings, limit_turn(headings, yaw_command, np.zeros((1, 3)), MAX_YAW, MAX_PITCH))
     np.testing.assert_allclose(commanded[0, :, 0], [0.4 * np.pi, 0.1 - 0.5 * np.pi + 2 * np.pi, 0.0])
     assert np.all((commanded[..., 0] >= 0) & (commanded[..., 0] < 2 * np.pi))
 
 
 def test_pitch_is_clamped_to_vertical():
     headings = np.array([[[0.0, np.pi / 2 - 0.1], [0.0, -np.pi / 2 + 0.1], [0.0, 0.0]]])
-    commanded = turn(headings, np.zeros((1, 3)), np.array([[1.0, -1.0, 0.0]]), MAX_YAW, MAX_PITCH)
+    pitch_command = np.array([[1.0, -1.0, 0.0]])
+    commanded = turned(headings, limit_turn(headings, np.zeros((1, 3)), pitch_command, MAX_YAW, MAX_PITCH))
     np.testing.assert_allclose(commanded[0, :, 1], [np.pi / 2, -np.pi / 2, 0.0])
 
 

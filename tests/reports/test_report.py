@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 from envs.agents import ATTACKER, DEFENDER
-from league.reports.browser_check import check_page, find_chromium
+from league.reports.page_check import check_page, find_chromium
 from league.evaluate import main as evaluate_main
 from league.analysis.statistics import wilson_interval
 from league.core.payoff import aggregate
@@ -150,7 +150,7 @@ def test_browser_check_reports_console_errors(tmp_path):
 
 
 def test_status_of_a_finished_run_says_finished_with_its_average_speed(tiny_run):
-    from league.reports.status import run_line
+    from league.reports.run_standing import run_line
     from league.state.run_dir import run_state
 
     store = LeagueStore(tiny_run)

@@ -12,7 +12,7 @@ from envs.kinematics import heading_vectors
 from envs.observations import global_state, observe, policy_input
 from envs.scripted import ScriptedPlayer, targeter_is_safe
 from league.config import load_config
-from league.evaluation.export import ExportedPolicy, export
+from league.evaluation.exported_policy import ExportedPolicy, export
 from league.rllib.bridge import learner_spec
 
 
