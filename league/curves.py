@@ -4,7 +4,7 @@
 ``--run-dirs runs/s0 runs/s1``).
 
 One thin line per run (seed), their mean, and the scripted and untrained reference lines,
-in ``OUT/curves.png``, with the last points in ``OUT/curves.md`` (``league.studies.curves``).
+in ``OUT/curves.png``, with the last points in ``OUT/curves.md`` (``league.studies.seed_curves``).
 The curves are measured while a run trains (``league.evaluation.learning_curves``). Each
 run's progress over generations (its snapshots, exploiters' included, against the scripted
 players of the other side, from each pair's newest evaluation) is drawn a row per run in
@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     out = args.out or default_out(args.run_dirs)
     from league.state.run_dir import RunDirError
-    from league.studies.curves import study
+    from league.studies.seed_curves import study
 
     try:
         png, md = study(args.run_dirs, out)

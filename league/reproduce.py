@@ -6,7 +6,7 @@ under the paper's protocol (phase 1: against the scripted team) with
 writes per variant and budget ``OUT/VARIANT/BUDGET/table1.md`` (per-seed win rates, their
 mean with a Student-t 95% interval over seeds, the paper's numbers, and from the learning
 curves each attacker's return under its own method next to the best scripted
-attacker's) and ``OUT/VARIANT/BUDGET/curves-methodM/`` (``league.studies.curves`` over the seeds).
+attacker's) and ``OUT/VARIANT/BUDGET/curves-methodM/`` (``league.studies.seed_curves`` over the seeds).
 
 * Budgets: ``--episodes N ...`` and ``--env-steps N ...``, each value one budget
   (default: ``--episodes 10000``, the paper's).
@@ -111,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 1
     wall = time.perf_counter() - started
-    from league.studies.curves import study
+    from league.studies.seed_curves import study
 
     for variant in args.variants:
         for budget in budgets:

@@ -27,7 +27,7 @@ attackers ``pure_pursuit``, ``lead_intercept``, ``proportional_navigation``,
 
 The coordinator hands in the live learners' modules (``league.rllib.bridge.live_module``):
 measuring needs no RLlib. ``read_curves`` reads the points back; ``league.reports.plots``
-draws them, ``league.studies.curves`` compares several runs (``python -m league.curves``).
+draws them, ``league.studies.seed_curves`` compares several runs (``python -m league.curves``).
 """
 
 

@@ -259,7 +259,7 @@ class Budget:
     from_prior: bool = False  # started from the run's prior (else from scratch)
 
 
-def exploit(
+def train_best_responses(
     run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Contestant, seeds: list[int], budget: Budget, say=print,
 ) -> Exploitability:
     """Train, evaluate and record one best response per seed; their results against ``exploited`` (a

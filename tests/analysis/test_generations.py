@@ -14,7 +14,7 @@ from league.core.players import Player
 from league.report import build_report
 from league.reports.data import gather
 from league.state.store import LeagueStore
-from league.studies.curves import study
+from league.studies.seed_curves import study
 
 A0 = Player("attacker", "snapshot", 0, 2, id=1)
 A1 = Player("attacker", "snapshot", 1, 2, id=2)
