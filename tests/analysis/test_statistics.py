@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.special import betainc
 
-from league.analysis.statistics import SEED_INTERVAL, iqm, mean_interval, probability_of_improvement, welch_test
+from league.analysis.statistics import SEED_INTERVAL, iqm, mean_interval, probability_of_improvement, welch_test, wilson_interval
 
 STUDIES = 4000
 
@@ -101,3 +101,10 @@ def test_paired_t_test_hand_checked():
     assert paired_t_test([0.0, 0.0, 0.0]) == 1.0 and paired_t_test([0.2, 0.2]) == 0.0
     with pytest.raises(ValueError):
         paired_t_test([0.1])
+
+
+@pytest.mark.parametrize(
+    "wins, games, low, high", [(0, 10, 0.0, 0.2775), (5, 10, 0.2366, 0.7634), (8, 10, 0.4902, 0.9433)]
+)
+def test_wilson_interval_known_values(wins, games, low, high):
+    assert wilson_interval(wins, games) == pytest.approx((low, high), abs=1e-4)

@@ -1,4 +1,5 @@
-"""End-to-end league runs in subprocesses (each starts and stops its own Ray)."""
+"""``league.run``: end-to-end league runs in subprocesses (each starts and stops its own Ray), and
+its exits on bad input."""
 
 import re
 import sqlite3
@@ -9,6 +10,8 @@ from pathlib import Path
 import pytest
 
 from envs.scripted import PLAYERS
+from league.run import main as run_main
+from tests.test_config import write
 
 # Every scripted team the game has (each scripted targeter with each scripted defender).
 EVERY_SCRIPTED_TEAM = "".join(
@@ -155,3 +158,17 @@ def test_evaluate_on_workers_prints_no_ray_banners(tiny_run, tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "fixed dev games of scenario set" in proc.stdout
     assert "Token authentication" not in proc.stderr and "Started a local Ray instance" not in proc.stderr, proc.stderr
+
+
+def test_run_exits_2_on_bad_config_and_writes_nothing(tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    assert run_main(["--config", write(tmp_path, "name: x\nppo: {bogus: 1}\n"), "--run-dir", str(run_dir)]) == 2
+    assert "ppo.bogus" in capsys.readouterr().err
+    assert not run_dir.exists()
+    assert run_main(["--config", "smoke", "--run-dir", str(run_dir), "--set", "league.pfsp=best"]) == 2
+    assert "league.pfsp" in capsys.readouterr().err and not run_dir.exists()
+
+
+def test_resume_of_a_non_run_exits_2(tmp_path, capsys):
+    assert run_main(["--resume", str(tmp_path)]) == 2
+    assert "not a league run directory" in capsys.readouterr().err
