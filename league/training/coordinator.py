@@ -14,6 +14,9 @@ phase's ``MatchPlan``, trained, snapshotted at the phase end and checkpointed li
 A graceful stop (``league.training.stop``) lets the current iteration finish and makes its
 checkpoint due, so that a resume goes on from where the run stopped.
 
+With ``league.double_oracle`` the iteration that ends a self-play phase is followed by PSRO's
+step (``league.training.oracle``): a best response against the other side's Nash mixture joins the pool.
+
 The run's lifecycle (start, resume, the final evaluation) is ``league.training.lifecycle``.
 """
 
@@ -39,7 +42,7 @@ from league.evaluation.learning_curves import LearningCurves, Measurements
 from league.rllib import bridge
 from league.state.run_dir import prune_checkpoints
 from league.state.store import DB_NAME, LeagueStore
-from league.training import checkpoints
+from league.training import checkpoints, oracle
 from league.training.evaluator import Evaluator
 from league.training.progress import ProgressReporter, TimeSplit
 from league.training.records import IterationRecord, IterationTiming, TrainResult, timed
@@ -90,10 +93,19 @@ class Coordinator:
             self.log("ppo.bf16: the learner's networks compute in bfloat16" if bridge.learner_computes_in_bf16(self.run)
                      else "ppo.bf16: this CPU has no native bfloat16 matmuls; the learner computes in float32")
         self.set_trainable()
+        self.add_due_oracles(stop)  # (a run resumed between a phase's end and its oracle)
         while not self.state.training_done:
             if stop:
                 stop.check()
             self.train_iteration(progress, stop)
+            self.add_due_oracles(stop)
+
+    def add_due_oracles(self, stop: StopRequests | None = None) -> None:
+        """PSRO's step after each self-play phase (``league.double_oracle``; ``league.training.oracle``)."""
+        while (step := self.league.oracle_due(self.state.phase, self.state.training_done, self.store.players())) is not None:
+            if stop:
+                stop.check()
+            oracle.carry_out(self, step, stop)
 
     # ------------------------------------------------------------ iteration
     def train_iteration(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
