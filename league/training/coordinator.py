@@ -32,7 +32,7 @@ import numpy as np
 
 from league.analysis.nash import meta_game, meta_game_players, missing_pairs, mixture_by_player
 from league.config import RunConfig
-from league.core.league import League, Records
+from league.core.league import League, OracleStep, Records
 from league.core.payoff import aggregate, league_ratings
 from league.core.players import NewPlayer, Player
 from league.core.schedule import PhaseState
@@ -42,7 +42,7 @@ from league.evaluation.learning_curves import LearningCurves, Measurements
 from league.rllib import bridge
 from league.state.run_dir import prune_checkpoints
 from league.state.store import DB_NAME, LeagueStore
-from league.training import checkpoints, oracle
+from league.training import checkpoints
 from league.training.evaluator import Evaluator
 from league.training.progress import ProgressReporter, TimeSplit
 from league.training.records import IterationRecord, IterationTiming, TrainResult, timed
@@ -82,6 +82,9 @@ class Coordinator:
         self.runner_health = bridge.env_runner_health(algo)
         self.curves = LearningCurves(run, run_dir, lambda text: self.log(text))
         self.time_split = TimeSplit()  # this process's, for the run's last line
+        # Carries out PSRO's step (``league.training.oracle.carry_out``); set by the lifecycle, since
+        # the step trains a best response in a coordinator of its own (that module imports this one).
+        self.oracle: Callable[[Coordinator, OracleStep, StopRequests | None], Any] | None = None
         if state.rng:
             self.rng.bit_generator.state = state.rng
 
@@ -103,9 +106,11 @@ class Coordinator:
     def add_due_oracles(self, stop: StopRequests | None = None) -> None:
         """PSRO's step after each self-play phase (``league.double_oracle``; ``league.training.oracle``)."""
         while (step := self.league.oracle_due(self.state.phase, self.state.training_done, self.store.players())) is not None:
+            if self.oracle is None:
+                raise RuntimeError("league.double_oracle: a coordinator without its oracle step (the lifecycle's)")
             if stop:
                 stop.check()
-            oracle.carry_out(self, step, stop)
+            self.oracle(self, step, stop)
 
     # ------------------------------------------------------------ iteration
     def train_iteration(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:

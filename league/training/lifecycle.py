@@ -59,6 +59,7 @@ def start(run: RunConfig, run_dir: Path, store: LeagueStore, check: Callable[[],
     algo = bridge.build_config(run, store.players(), plan).build_algo()
     check()
     coordinator = Coordinator(run, run_dir, store, algo, state, seed=run.seed, league=league)
+    coordinator.oracle = oracle.carry_out
     begin(coordinator, check)
     return coordinator
 
@@ -106,7 +107,9 @@ def resume(run: RunConfig, run_dir: Path, store: LeagueStore, iteration: int, ch
     assert last is not None  # ``iteration``'s, kept by the rollback
     algo = checkpoints.restore(run_dir / checkpoint)
     oracle.restore_modules(algo, run, run_dir, store.players())  # those that joined after the checkpoint was written
-    return Coordinator(run, run_dir, store, algo, RunState.from_json(last[2]))
+    coordinator = Coordinator(run, run_dir, store, algo, RunState.from_json(last[2]))
+    coordinator.oracle = oracle.carry_out
+    return coordinator
 
 
 def intact_checkpoints(run_dir: Path, store: LeagueStore) -> tuple[list[tuple[int, str]], list[str]]:

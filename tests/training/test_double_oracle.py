@@ -45,13 +45,15 @@ class Interrupted(Exception):
 
 
 def train(run, run_dir, interrupt=None):
-    """Train ``run`` into ``run_dir``; with ``interrupt`` (a context that breaks the run once), stop
-    where it breaks, resume from the newest checkpoint and train to the end. The store, read-only use."""
+    """Train ``run`` into ``run_dir``; with ``interrupt`` (which breaks the new coordinator once, its
+    changes made through the ``MonkeyPatch`` it is given), stop where it breaks, resume from the
+    newest checkpoint and train to the end. The store."""
     store = LeagueStore(run_dir, create=True)
     coordinator = lifecycle.start(run, run_dir, store)
     progress = ProgressReporter(run_dir, 2, stream=io.StringIO())
     if interrupt is not None:
-        with interrupt(), pytest.raises((Stopped, Interrupted)):
+        with pytest.MonkeyPatch.context() as patch, pytest.raises((Stopped, Interrupted)):
+            interrupt(coordinator, patch)
             coordinator.train(progress)
         coordinator.algo.stop()
         store.close()
@@ -129,49 +131,37 @@ def test_a_phase_end_adds_a_best_response_that_the_next_phase_meets(whole):
     assert {(first.id, t.id) for t in teams_then} <= evaluated
 
 
-def test_a_run_stopped_after_the_oracle_step_and_resumed_is_the_run_never_stopped(whole, config, monkeypatch):
+def test_a_run_stopped_after_the_oracle_step_and_resumed_is_the_run_never_stopped(whole, config):
     """Stopped right after the first oracle committed: its row is in the database, the checkpoint
     the resume starts from was written before its module joined the algorithm."""
-    _, whole_dir, _ = whole
-    real = oracle.carry_out
 
-    def then_stop(*args, **kwargs):
-        real(*args, **kwargs)
-        raise Stopped(15)
+    def stop_after_the_first_oracle(coordinator, patch):
+        def then_stop(*args):
+            oracle.carry_out(*args)
+            raise Stopped(15)
 
-    class StopOnce:
-        def __enter__(self):
-            monkeypatch.setattr(oracle, "carry_out", then_stop)
-
-        def __exit__(self, *exc):
-            monkeypatch.setattr(oracle, "carry_out", real)
+        patch.setattr(coordinator, "oracle", then_stop)
 
     run_dir = config.parent / "stopped"
     run_dir.mkdir()
-    train(load_config(str(config)), run_dir, StopOnce).close()
-    assert run_differences(whole_dir, run_dir) == []
+    train(load_config(str(config)), run_dir, stop_after_the_first_oracle).close()
+    assert run_differences(whole[1], run_dir) == []
 
 
-def test_a_run_killed_inside_the_oracle_step_and_resumed_is_the_run_never_killed(whole, config, monkeypatch):
+def test_a_run_killed_inside_the_oracle_step_and_resumed_is_the_run_never_killed(whole, config):
     """Killed after the first oracle trained and its module was saved, before its row was committed:
     the resume trains it again, the same one."""
-    _, whole_dir, _ = whole
-    real = bridge.add_frozen_player
 
-    def killed(*args, **kwargs):
-        raise Interrupted
+    def kill_before_the_first_oracle_commits(coordinator, patch):
+        def killed(*args):
+            raise Interrupted
 
-    class KillOnce:
-        def __enter__(self):
-            monkeypatch.setattr(bridge, "add_frozen_player", killed)
-
-        def __exit__(self, *exc):
-            monkeypatch.setattr(bridge, "add_frozen_player", real)
+        patch.setattr(bridge, "add_frozen_player", killed)
 
     run_dir = config.parent / "killed"
     run_dir.mkdir()
-    train(load_config(str(config)), run_dir, KillOnce).close()
-    assert run_differences(whole_dir, run_dir) == []
+    train(load_config(str(config)), run_dir, kill_before_the_first_oracle_commits).close()
+    assert run_differences(whole[1], run_dir) == []
 
 
 @pytest.mark.parametrize("override, named", [
