@@ -245,6 +245,9 @@ class DoubleOracle(Strict):
 
     env_steps: int = Field(0, ge=0)
     """Env steps each phase's best response trains for; 0: no double-oracle step."""
+    meta_solver: Literal["nash", "regret_matching"] = "nash"
+    """Each side's meta-strategy, what the other side's best response trains against (and ``pfsp: nash``'s weights):
+    the meta-game's Nash mixture, or regret matching against the other side's best responses (Anytime PSRO)."""
 
 
 class LeagueSettings(Strict):
@@ -344,6 +347,9 @@ class LeagueSettings(Strict):
             raise ValueError("the league needs at least one scripted attacker and one scripted team")
         if self.double_oracle.env_steps and self.mode != "selfplay":
             raise ValueError("league.double_oracle.env_steps follows self-play phases: set league.mode: selfplay, or 0")
+        if self.double_oracle.meta_solver != "nash" and not self.double_oracle.env_steps:
+            raise ValueError("league.double_oracle.meta_solver: regret_matching plays against the double oracle's best "
+                             "responses: set league.double_oracle.env_steps")
         if self.exploiter_phases != "all":
             follows = "attacker" if self.selfplay_phases % 2 == 0 else "team"
             if self.mode != "selfplay" or self.exploiters != [follows]:

@@ -36,8 +36,9 @@ class Records:
 
     players: list[Player]
     training: list[OutcomeCount]
-    # PSRO's rule (``league.pfsp: nash``): each frozen player's weight in its side's Nash mixture of the meta-game
-    nash: dict[int, float] | None = None
+    # PSRO's rule (``league.pfsp: nash``): each frozen player's weight in its side's meta-strategy, the Nash
+    # mixture of the meta-game (or regret matching's, ``league.double_oracle.meta_solver``)
+    meta_strategy: dict[int, float] | None = None
 
 
 Weights = dict[str, dict[str, float]]  # a learner's probability per opponent, by name
@@ -138,7 +139,7 @@ class League:
         probability per opponent.
 
         A learner meets the phase's candidates by PFSP on its training results (with the
-        config's share for the scripted players), or by their Nash weights (``records.nash``);
+        config's share for the scripted players), or by their meta-strategy weights (``records.meta_strategy``);
         the side's exploiters join the plan as further entries with the other side's current
         learners as their only, equally likely, opponents."""
         players, settings = records.players, self.settings
@@ -146,7 +147,7 @@ class League:
         opponents = self.candidates(phase, players)
         scripted = [o.is_scripted for o in opponents]
         share = settings.scripted_share.get(phase.side, 0.0)
-        nash = self._nash_weights(opponents, records) if settings.pfsp == "nash" else None
+        nash = self._meta_strategy_weights(opponents, records) if settings.pfsp == "nash" else None
         table = aggregate(records.training)
         probabilities = [
             with_scripted_share([win_rate(*record_against(table, learner.side, learner.id, o.id)) for o in opponents],
@@ -167,10 +168,10 @@ class League:
         return plan, weights
 
     @staticmethod
-    def _nash_weights(opponents: list[Player], records: Records) -> list[float]:
-        if records.nash is None:
-            raise RuntimeError("league.pfsp: nash needs every pair of frozen players evaluated (the meta-game's Nash mixture)")
-        return [records.nash.get(o.id, 0.0) for o in opponents]
+    def _meta_strategy_weights(opponents: list[Player], records: Records) -> list[float]:
+        if records.meta_strategy is None:
+            raise RuntimeError("league.pfsp: nash needs every pair of frozen players evaluated (the meta-game's mixtures)")
+        return [records.meta_strategy.get(o.id, 0.0) for o in opponents]
 
     # ------------------------------------------------------------ phases, snapshots, checkpoints
     def count_played(

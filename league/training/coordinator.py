@@ -31,6 +31,7 @@ from typing import Any, Callable
 import numpy as np
 
 from league.analysis.nash import meta_game, meta_game_players, missing_pairs, mixture_by_player
+from league.analysis.regret_matching import restricted_distributions
 from league.config import RunConfig
 from league.core.league import League, OracleStep, Records
 from league.core.payoff import aggregate, league_ratings
@@ -156,8 +157,8 @@ class Coordinator:
     def records(self, played: list[PairEvaluation]) -> Records:
         """The league's records as the store holds them (with ``played``, the meta-game's pairs evaluated now)."""
         players = self.store.players()
-        nash = self.nash_mixture(players, played) if self.run.league.pfsp == "nash" else None
-        return Records(players, self.store.outcome_rows("training"), nash)
+        strategy = self.meta_strategy(players, played) if self.run.league.pfsp == "nash" else None
+        return Records(players, self.store.outcome_rows("training"), strategy)
 
     def meta_game_evaluations(self) -> list[PairEvaluation]:
         """PSRO's rule (``league.pfsp: nash``) needs every pair of frozen players evaluated: the
@@ -168,12 +169,16 @@ class Coordinator:
         missing = missing_pairs(attackers, teams, aggregate(self.store.newest_evaluation_rows()))
         return self.evaluator.evaluate(missing) if missing else []
 
-    def nash_mixture(self, players: list[Player], played: list[PairEvaluation]) -> dict[int, float] | None:
-        """Each frozen player's Nash weight in the meta-game on each pair's newest evaluation, or None without one."""
+    def meta_strategy(self, players: list[Player], played: list[PairEvaluation]) -> dict[int, float] | None:
+        """Each frozen player's weight in its side's meta-strategy (``league.double_oracle.meta_solver``) of the
+        meta-game on each pair's newest evaluation, or None without one."""
         payoff = aggregate(self.store.newest_evaluation_rows())
         payoff.update({(r.attacker.id, r.team.id): (r.attacker_wins, r.games) for r in played})
         meta = meta_game(*meta_game_players(players), payoff)
-        return None if meta is None else mixture_by_player(meta)
+        if meta is None:
+            return None
+        return restricted_distributions(meta) if self.run.league.double_oracle.meta_solver == "regret_matching" else (
+            mixture_by_player(meta))
 
     def count(self, train: TrainResult, players: list[Player]) -> int:
         """Add this ``train()``'s episodes and env steps to the run's counts and the phase's progress; its env steps."""

@@ -5,8 +5,10 @@ after every iteration, and once more when it starts or resumes):
 
 1. the meta-game's pairs without an evaluation (the phase's new snapshots against the other
    side's frozen players) are played on the fixed games;
-2. the other side's Nash mixture of that meta-game, the mixture player ``nash-SIDE@ITERATION``
-   (``league.analysis.mixtures``), is what the best response trains against;
+2. the other side's meta-strategy in that meta-game is what the best response trains against: its
+   Nash mixture, the mixture player ``nash-SIDE@ITERATION`` (``league.analysis.mixtures``), or with
+   ``league.double_oracle.meta_solver: regret_matching`` its distribution by regret matching
+   against the phase side's best responses (``league.analysis.regret_matching``), ``rm-SIDE@ITERATION``;
 3. the best response of the phase's side trains against it for ``league.double_oracle.env_steps``
    env steps (``league.training.best_response``: a one-phase scratch run inside the run
    directory, each episode's opponent a member drawn with the mixture's weights), from the run's
@@ -31,7 +33,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from league.analysis.mixtures import league_mixture
+from league.analysis.mixtures import league_mixture, regret_matching_mixture
 from league.analysis.nash import meta_game_players, missing_pairs
 from league.config import RunConfig
 from league.core.league import OracleStep
@@ -56,13 +58,16 @@ def oracle_run(run: RunConfig) -> RunConfig:
 
 
 def carry_out(coordinator: Coordinator, step: OracleStep, stop: StopRequests | None = None) -> Player:
-    """Train ``step``'s best response against the other side's Nash mixture and add it to the league; its row."""
+    """Train ``step``'s best response against the other side's meta-strategy and add it to the league; its row."""
     store, run, run_dir, iteration = coordinator.store, coordinator.run, coordinator.run_dir, coordinator.state.iteration
     attackers, teams = meta_game_players(store.players())
     missing = missing_pairs(attackers, teams, aggregate(store.newest_evaluation_rows()))
     played, evaluation_seconds = timed(lambda: coordinator.evaluator.evaluate(missing) if missing else [])
     rows = store.newest_evaluation_rows() + [row for pair in played for row in pair.outcome_rows()]
-    mixture = league_mixture(f"nash-{step.exploited_side}@{iteration}", store.players(), rows, iteration)
+    if run.league.double_oracle.meta_solver == "regret_matching":
+        mixture = regret_matching_mixture(step.exploited_side, store.players(), rows, iteration)
+    else:
+        mixture = league_mixture(f"nash-{step.exploited_side}@{iteration}", store.players(), rows, iteration)
     member = step.member
     scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=run_dir))
     try:

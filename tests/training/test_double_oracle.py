@@ -12,6 +12,7 @@ while the first oracle's module was being added (its row not committed). Every i
 import io
 import sqlite3
 
+import numpy as np
 import pytest
 import torch
 
@@ -180,3 +181,48 @@ def test_the_double_oracle_step_needs_self_play(config, tmp_path, capsys):
     assert run_cli.main(["--config", str(config), "--run-dir", str(tmp_path / "x"), *protocol]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "league.double_oracle.env_steps" in err and "selfplay" in err, err
+
+
+def test_with_regret_matching_the_learners_meet_the_distribution_against_the_best_responses(ray_instance, config):
+    """``meta_solver: regret_matching`` with ``pfsp: nash``: in each of three phases the learner meets
+    the other side with its regret-matching weights against the best responses
+    (``league.analysis.regret_matching``): evenly while there is none, not by the meta-game's Nash mixture."""
+    from league.analysis.nash import meta_game, meta_game_players, mixture_by_player
+    from league.analysis.regret_matching import restricted_distributions
+    from league.core.payoff import aggregate
+
+    run = load_config(str(config), ["league.selfplay_phases=3", "league.pfsp=nash",
+                                    "league.double_oracle.meta_solver=regret_matching"])
+    run_dir = config.parent / "regret-matching"
+    run_dir.mkdir()
+    plans, holder = [], {}
+    real_set_match_plan = bridge.set_match_plan
+
+    def recording(algo, plan):
+        main = holder.get("coordinator")
+        if main is not None and algo is main.algo:
+            plans.append((main.state.iteration + 1, main.state.phase.index, plan))
+        real_set_match_plan(algo, plan)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(bridge, "set_match_plan", recording)
+        store = LeagueStore(run_dir, create=True)
+        holder["coordinator"] = coordinator = lifecycle.start(run, run_dir, store)
+        coordinator.train(ProgressReporter(run_dir, 3, stream=io.StringIO()))
+        coordinator.algo.stop()
+    players = store.players()
+    by_modules = {frozenset(p.modules().items()): p for p in players}
+    payoff = aggregate(store.newest_evaluation_rows())
+    assert {phase for _, phase, _ in plans} == {0, 1, 2}
+    for iteration, phase, plan in plans:
+        meta = meta_game(*meta_game_players([p for p in players if p.created_iteration < iteration]), payoff)
+        expected, nash = restricted_distributions(meta), mixture_by_player(meta)
+        met = [by_modules[frozenset(o.items())].id for o in plan.opponents[0]]
+        np.testing.assert_allclose(plan.probabilities[0], [expected[i] for i in met], atol=1e-9)
+        if phase == 1:  # the teams have no best response yet: the attackers are met evenly, not by Nash
+            assert any(p.kind == "oracle" for p in meta.attackers) and not any(p.kind == "oracle" for p in meta.teams)
+            assert plan.probabilities[0] == pytest.approx([1 / len(met)] * len(met))
+            assert not np.allclose([nash[i] for i in met], plan.probabilities[0], atol=0.01)
+        if phase == 2:  # against the attacker's best response of the first phase
+            assert any(p.kind == "oracle" for p in meta.attackers)
+    store.close()
