@@ -5,8 +5,9 @@ or killed inside it, and resumed is the run never stopped.
 
 Three tiny runs of two phases (attacker, team) train in this process on a private Ray
 instance: one uninterrupted, one stopped right after the first oracle committed, one killed
-while the first oracle's module was being added (its row not committed). Every iteration's
-``MatchPlan`` of the uninterrupted run is recorded on its way to the env runners.
+while the first oracle's module was being added (its row not committed); a fourth of three
+phases uses ``meta_solver: regret_matching`` with ``pfsp: nash``. Every iteration's
+``MatchPlan`` of the uninterrupted runs is recorded on its way to the env runners.
 """
 
 import io
