@@ -169,12 +169,20 @@ def test_a_run_killed_inside_the_oracle_step_and_resumed_is_the_run_never_killed
 @pytest.mark.parametrize("override, named", [
     ("league.double_oracle.env_steps=-1", "league.double_oracle.env_steps"),
     ("league.double_oracle.env_stepz=100", "league.double_oracle.env_stepz"),
+    ("league.double_oracle.meta_solver=regret", "league.double_oracle.meta_solver"),
 ])
 def test_a_bad_double_oracle_value_exits_2_naming_the_key(config, tmp_path, capsys, override, named):
     assert run_cli.main(["--config", str(config), "--run-dir", str(tmp_path / "x"), "--set", override]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and named in err, err
     assert not (tmp_path / "x").exists()
+
+
+def test_regret_matching_needs_the_double_oracles_best_responses(config, tmp_path, capsys):
+    overrides = ["--set", "league.double_oracle.env_steps=0", "--set", "league.double_oracle.meta_solver=regret_matching"]
+    assert run_cli.main(["--config", str(config), "--run-dir", str(tmp_path / "x"), *overrides]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "league.double_oracle.meta_solver" in err and "env_steps" in err, err
 
 
 def test_the_double_oracle_step_needs_self_play(config, tmp_path, capsys):
