@@ -195,6 +195,18 @@ class ProtocolPhase(Strict):
         return self
 
 
+class DoubleOracle(Strict):
+    """PSRO's step in a self-play league (``league.training.oracle``): at each self-play phase's end a
+    best response of the phase's side, trained from the run's prior against the other side's
+    meta-strategy, joins its side's pool and the meta-game as a frozen player (kind ``oracle``)."""
+
+    env_steps: int = Field(0, ge=0)
+    """Env steps each phase's best response trains for; 0: no double-oracle step."""
+    meta_solver: Literal["nash", "regret_matching"] = "nash"
+    """Each side's meta-strategy, what the other side's best response trains against (and ``pfsp: nash``'s weights):
+    the meta-game's Nash mixture, or regret matching against the other side's best responses (Anytime PSRO)."""
+
+
 class LeagueSettings(Strict):
     """Who is in the league, who learns when, against whom, and when a phase ends."""
 
@@ -240,6 +252,7 @@ class LeagueSettings(Strict):
     """Scripted attackers in the league (``envs.scripted``): training opponents of the team and members of the meta-game."""
     scripted_teams: list[ScriptedTeam] = Field(default_factory=lambda: [ScriptedTeam()])
     """Scripted teams (a targeter and a defender each) in the league: training opponents of the attackers and members of the meta-game."""
+    double_oracle: DoubleOracle = Field(default_factory=DoubleOracle)
 
     @field_validator("exploiters")
     @classmethod
@@ -265,6 +278,11 @@ class LeagueSettings(Strict):
             raise ValueError("attacker_reward_methods must list distinct methods (1, 2, 3), at least one")
         if not self.scripted_attackers or not self.scripted_teams:
             raise ValueError("the league needs at least one scripted attacker and one scripted team")
+        if self.double_oracle.env_steps and self.mode != "selfplay":
+            raise ValueError("league.double_oracle.env_steps follows self-play phases: set league.mode: selfplay, or 0")
+        if self.double_oracle.meta_solver != "nash" and not self.double_oracle.env_steps:
+            raise ValueError("league.double_oracle.meta_solver: regret_matching plays against the double oracle's best "
+                             "responses: set league.double_oracle.env_steps")
         if self.exploiter_phases != "all":
             follows = "attacker" if self.selfplay_phases % 2 == 0 else "team"
             if self.mode != "selfplay" or self.exploiters != [follows]:

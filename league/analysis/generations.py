@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 from league.analysis.statistics import wilson_interval
 from league.core.payoff import record_against
-from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player
+from league.core.players import POOL_KINDS, SNAPSHOT_KIND, Player, base_name
 
 SIDES = ("attacker", "team")
 TRAINED_KIND = {frozen: trained for trained, frozen in SNAPSHOT_KIND.items()}  # exploiter_snapshot -> exploiter
@@ -56,8 +56,10 @@ class GenerationLine:
 
 
 def lineage(snapshot: Player) -> str:
-    """The name of the learner or exploiter a snapshot was frozen from (``attacker-m2``, ``team-exploiter``)."""
-    return replace(snapshot, kind=TRAINED_KIND[snapshot.kind]).name
+    """The name of the learner or exploiter a snapshot was frozen from (``attacker-m2``, ``team-exploiter``);
+    of a pool member trained by none, its kind after its side's name (``attacker-m2-oracle``)."""
+    trained = TRAINED_KIND.get(snapshot.kind)
+    return replace(snapshot, kind=trained).name if trained else f"{base_name(snapshot)}-{snapshot.kind}"
 
 
 def generation_lines(

@@ -11,13 +11,14 @@ is the LP's vertex; each member's range comes from ``weight_range`` (two LPs per
 from __future__ import annotations
 
 from dataclasses import replace
-
 from typing import Any
+
+import numpy as np
 
 from league.analysis.nash import SUPPORT_THRESHOLD, league_meta_game
 from league.core.mixture import Mixture, MixtureError, is_mixture_name, parse_mixture_name
 from league.core.payoff import OutcomeCount
-from league.core.players import Player
+from league.core.players import Player, Side
 
 
 def league_mixture(name: str, players: list[Player], evaluation_rows: list[OutcomeCount], last_iteration: int) -> Mixture:
@@ -41,6 +42,26 @@ def league_mixture(name: str, players: list[Player], evaluation_rows: list[Outco
         weights=tuple(w / total for _, w in chosen), ranges=tuple(meta.weight_range(spec.side, [p]) for p, _ in chosen),
         value=value,
     )
+
+
+def regret_matching_mixture(side: Side, players: list[Player], evaluation_rows: list[OutcomeCount], iteration: int) -> Mixture:
+    """``side``'s regret-matching distribution (``league.analysis.regret_matching``) in iteration ``iteration``'s
+    meta-game as a mixture player, ``rm-SIDE@K``: its weights' range is the weight (it is no LP's vertex), its
+    value its expected win rate against the other side's Nash mixture."""
+    from league.analysis.regret_matching import restricted_distributions
+
+    name = f"rm-{side}@{iteration}"
+    meta, why_not = league_meta_game([p for p in players if p.created_iteration <= iteration], evaluation_rows)
+    if meta is None:
+        raise MixtureError(f"{name}: iteration {iteration} has no meta-game: {why_not}")
+    by_id = restricted_distributions(meta)
+    side_players = meta.attackers if side == "attacker" else meta.teams
+    chosen = sorted(((p, by_id[p.id]) for p in side_players if by_id[p.id] > 0), key=lambda pw: -pw[1])
+    weights = np.array([by_id[p.id] for p in side_players])
+    eq = meta.equilibrium
+    value = float(weights @ eq.row_ratings) if side == "attacker" else float(weights @ eq.column_ratings)
+    return Mixture(name=name, side=side, iteration=iteration, members=tuple(p for p, _ in chosen),
+                   weights=tuple(w for _, w in chosen), ranges=tuple((w, w) for _, w in chosen), value=value)
 
 
 def store_mixture(store: Any, name: str) -> Mixture:

@@ -145,15 +145,19 @@ def weight_range(payoff: np.ndarray, side: Literal["row", "column"], members: It
 WEIGHT_GROUPS = {
     "learners": "trained learners' snapshots (v1 on)",
     "exploiters": "exploiters' snapshots",
+    "oracles": "double-oracle best responses",
     "scripted_and_v0": "scripted players and v0",
 }
 
 
 def weight_group(player: Player) -> str:
     """A frozen player's group in ``WEIGHT_GROUPS``: a learner's snapshot from version 1 on, an
-    exploiter's snapshot, or the rest (scripted players, a learner's untrained version 0)."""
+    exploiter's snapshot, a double-oracle best response, or the rest (scripted players, a learner's
+    untrained version 0)."""
     if player.kind == "exploiter_snapshot":
         return "exploiters"
+    if player.kind == "oracle":
+        return "oracles"
     if player.kind == "snapshot" and player.version > 0:
         return "learners"
     return "scripted_and_v0"
@@ -266,8 +270,8 @@ META_GAME_NOTE = (
 
 
 def meta_game_players(players: list[Player]) -> tuple[list[Player], list[Player]]:
-    """The league's frozen attackers and teams: snapshots, exploiter snapshots and scripted players
-    (not learners, exploiters or best responses)."""
+    """The league's frozen attackers and teams: snapshots, exploiter snapshots, double-oracle best
+    responses and scripted players (not learners, exploiters or ``league.exploit``'s best responses)."""
     frozen = [p for p in players if p.kind in (*POOL_KINDS, "scripted")]
     return [p for p in frozen if p.side == "attacker"], [p for p in frozen if p.side == "team"]
 

@@ -9,6 +9,7 @@
 | how far a phase has come                        | ``count_played``                                  |
 | when a phase ends, and so a snapshot is taken  | ``phase_over``, then ``snapshot`` of each trainee and ``next_phase`` |
 | when the learners are evaluated, when a checkpoint is written | ``evaluation_due``, ``checkpoint_due`` |
+| when PSRO's best response is due, of which side, for how long | ``oracle_due`` (``league.double_oracle``) |
 
 Which side learns, against whom and for how long is the run's schedule
 (``league.core.schedule``). The coordinator (``league.training.coordinator``) hands the
@@ -26,6 +27,7 @@ from league.core.payoff import OutcomeCount, aggregate, record_against, win_rate
 from league.core.pfsp import with_scripted_share
 from league.core.players import NewPlayer, Player, Side, other_side, role_of
 from league.core.schedule import PhaseState, Schedule, schedule_of
+from league.core.seeding import Purpose, run_seed
 
 
 @dataclass(frozen=True)
@@ -34,11 +36,36 @@ class Records:
 
     players: list[Player]
     training: list[OutcomeCount]
-    # PSRO's rule (``league.pfsp: nash``): each frozen player's weight in its side's Nash mixture of the meta-game
-    nash: dict[int, float] | None = None
+    # PSRO's rule (``league.pfsp: nash``): each frozen player's weight in its side's meta-strategy, the Nash
+    # mixture of the meta-game (or regret matching's, ``league.double_oracle.meta_solver``)
+    meta_strategy: dict[int, float] | None = None
 
 
 Weights = dict[str, dict[str, float]]  # a learner's probability per opponent, by name
+
+
+@dataclass(frozen=True)
+class OracleStep:
+    """PSRO's step owed by self-play phase ``phase`` (``league.double_oracle``): a best response of
+    the phase's side, trained against the other side's meta-strategy and frozen into the pool as
+    ``member`` (kind ``oracle``, no module yet; its training seed and budget in its columns)."""
+
+    phase: int
+    member: NewPlayer
+
+    @property
+    def seed(self) -> int:
+        assert self.member.seed is not None
+        return self.member.seed
+
+    @property
+    def env_steps(self) -> int:
+        assert self.member.env_step_budget is not None
+        return self.member.env_step_budget
+
+    @property
+    def exploited_side(self) -> Side:
+        return "team" if self.member.side == "attacker" else "attacker"
 
 
 class League:
@@ -112,7 +139,7 @@ class League:
         probability per opponent.
 
         A learner meets the phase's candidates by PFSP on its training results (with the
-        config's share for the scripted players), or by their Nash weights (``records.nash``);
+        config's share for the scripted players), or by their meta-strategy weights (``records.meta_strategy``);
         the side's exploiters join the plan as further entries with the other side's current
         learners as their only, equally likely, opponents."""
         players, settings = records.players, self.settings
@@ -120,7 +147,7 @@ class League:
         opponents = self.candidates(phase, players)
         scripted = [o.is_scripted for o in opponents]
         share = settings.scripted_share.get(phase.side, 0.0)
-        nash = self._nash_weights(opponents, records) if settings.pfsp == "nash" else None
+        nash = self._meta_strategy_weights(opponents, records) if settings.pfsp == "nash" else None
         table = aggregate(records.training)
         probabilities = [
             with_scripted_share([win_rate(*record_against(table, learner.side, learner.id, o.id)) for o in opponents],
@@ -141,10 +168,10 @@ class League:
         return plan, weights
 
     @staticmethod
-    def _nash_weights(opponents: list[Player], records: Records) -> list[float]:
-        if records.nash is None:
-            raise RuntimeError("league.pfsp: nash needs every pair of frozen players evaluated (the meta-game's Nash mixture)")
-        return [records.nash.get(o.id, 0.0) for o in opponents]
+    def _meta_strategy_weights(opponents: list[Player], records: Records) -> list[float]:
+        if records.meta_strategy is None:
+            raise RuntimeError("league.pfsp: nash needs every pair of frozen players evaluated (the meta-game's mixtures)")
+        return [records.meta_strategy.get(o.id, 0.0) for o in opponents]
 
     # ------------------------------------------------------------ phases, snapshots, checkpoints
     def count_played(
@@ -188,6 +215,27 @@ class League:
                     if p.side == trainee.side and p.kind == role.frozen_as and p.reward_method == trainee.reward_method]
         version = 1 + max(versions, default=role.first_snapshot - 1)
         return NewPlayer(trainee.side, role.frozen_as, version, trainee.reward_method, parent=trainee.id, env_steps=env_steps)
+
+    # ------------------------------------------------------------ PSRO's step
+    def oracle_due(self, phase: PhaseState, training_done: bool, players: list[Player]) -> OracleStep | None:
+        """The oldest finished self-play phase's best response not in the league yet, or None (also
+        without ``league.double_oracle``). A phase is finished once the next one has started, the
+        last one when training is done; a best response is matched to its phase by side and version
+        (the ``k``-th phase of a side owes ``oracle`` version ``k``)."""
+        env_steps = self.settings.double_oracle.env_steps
+        if not env_steps:
+            return None
+        finished = min(phase.index + int(training_done), self.settings.selfplay_phases)
+        joined = {(p.side, p.version) for p in players if p.kind == "oracle"}
+        for index in range(finished):
+            side = self.schedule.side(index)
+            version = sum(self.schedule.side(i) == side for i in range(index + 1))
+            if (side, version) not in joined:
+                method = self.run.game.attacker_reward if side == "attacker" else None  # the one attacker a best response trains
+                seed = run_seed(self.run.seed, Purpose.ORACLES, index)
+                return OracleStep(index, NewPlayer(side, "oracle", version, method, seed=seed, env_step_budget=env_steps,
+                                                   from_prior=True))
+        return None
 
     def evaluation_due(self, iteration: int) -> bool:
         """Whether the phase's learners are evaluated against their opponents after ``iteration``."""

@@ -15,13 +15,15 @@ What a member does is its role, a class per value of the store's ``kind`` column
 | ``Exploiter`` (exploiter) | the side's exploiter (config ``league.exploiters``): trains in its side's phases against the other side's newest snapshots only | yes |
 | ``ExploiterSnapshot`` (exploiter_snapshot) | a frozen copy of an exploiter, in its side's pool like a snapshot | no |
 | ``BestResponse`` (best_response) | trained from scratch against one frozen player (its ``parent``) by ``league.training.best_response`` (``python -m league.exploit``); not in the training pool | no (frozen once trained) |
+| ``Oracle`` (oracle) | PSRO's best response, trained at a self-play phase's end against the other side's meta-strategy (``league.double_oracle``, ``league.training.oracle``); in its side's pool like a snapshot | no (frozen once trained) |
 
 A new kind of member is a ``Role`` subclass with its ``kind`` and what differs (its name,
 whether it trains or is in the pool, its modules), listed in ``ROLES``.
 
 Names: ``attacker-m2``, ``team`` (learners), ``attacker-m2-v3``, ``team-v2`` (snapshots),
 ``attacker-m2-exploiter``, ``team-exploiter-v1`` (exploiters and their snapshots),
-``team-br0`` (best responses), ``scripted-lead_intercept`` (scripted).
+``team-br0`` (best responses), ``attacker-m2-oracle-v1`` (double-oracle best responses),
+``scripted-lead_intercept`` (scripted).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from typing import Any, ClassVar, Literal, Protocol
 from envs.scripted import PAPER_TEAM
 
 Side = Literal["attacker", "team"]
-Kind = Literal["learner", "snapshot", "exploiter", "exploiter_snapshot", "scripted", "best_response"]
+Kind = Literal["learner", "snapshot", "exploiter", "exploiter_snapshot", "scripted", "best_response", "oracle"]
 AGENTS_OF_SIDE: dict[str, tuple[str, ...]] = {"attacker": ("attacker",), "team": ("targeter", "defender")}
 UNRECORDED_ID = -1  # the id of a player that is evaluated before its row is written (``NewPlayer.unrecorded``)
 
@@ -121,6 +123,16 @@ class BestResponse(Role):
         return f"{base_name(player)}-br{player.version}"
 
 
+class Oracle(Role):
+    """Version ``k``: the best response after its side's ``k``-th self-play phase, like that phase's snapshot."""
+
+    kind = "oracle"
+    in_pool = True
+
+    def name(self, player: Columns) -> str:
+        return f"{base_name(player)}-oracle-v{player.version}"
+
+
 class Scripted(Role):
     kind = "scripted"
 
@@ -146,7 +158,7 @@ class Scripted(Role):
 
 
 ROLES: dict[str, Role] = {role.kind: role for role in (
-    Learner(), Snapshot(), Exploiter(), ExploiterSnapshot(), BestResponse(), Scripted(),
+    Learner(), Snapshot(), Exploiter(), ExploiterSnapshot(), BestResponse(), Oracle(), Scripted(),
 )}
 # The kinds by what their role does (readers that filter a list of players by kind).
 TRAINED_KINDS = tuple(kind for kind, role in ROLES.items() if role.trains)
@@ -247,5 +259,5 @@ class Player(NewPlayer):
 
     @property
     def in_pool(self) -> bool:
-        """A frozen trained player (a snapshot, an exploiter's snapshot): an opponent of the other side's learners."""
+        """A frozen trained player (a snapshot, an exploiter's snapshot, an oracle): an opponent of the other side's learners."""
         return self.role.in_pool

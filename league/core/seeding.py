@@ -19,11 +19,17 @@ class Purpose(IntEnum):
     GAME_STARTS = 1  # the training games' starting positions, per env runner
     EXPLORATION = 2  # torch's, NumPy's and Python's global generators (actions, minibatch order), per iteration and runner
     MATCH_PLANS = 3  # the coordinator's draws of each iteration's match-plan seed
+    ORACLES = 4  # a double-oracle best response's training run (``league.double_oracle``), per self-play phase
 
 
 def stream(seed: int, purpose: Purpose, *index: int) -> np.random.SeedSequence:
     """The ``SeedSequence`` of ``purpose``'s stream number ``index`` of a run seeded ``seed``."""
     return np.random.SeedSequence([seed, int(purpose), *index])
+
+
+def run_seed(seed: int, purpose: Purpose, *index: int) -> int:
+    """A seed in ``[0, 2**32)``, what a run's config takes (``RunConfig.seed``), from ``purpose``'s stream ``index``."""
+    return int(stream(seed, purpose, *index).generate_state(1, np.uint32)[0])
 
 
 def stream_seed(seed: int, purpose: Purpose, *index: int) -> int:

@@ -29,7 +29,7 @@ from envs.rllib_env import TargetDefenseMultiAgentEnv, policy_input_space
 from envs.single import action_space
 from league.config import RunConfig
 from league.core.match_plan import MatchPlan
-from league.core.players import Player
+from league.core.players import NewPlayer, Player
 from league.rllib.algorithm import MINIBATCH_SIZES, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
 from league.rllib.env_runner import BatchedEnvRunner, SeededEnvRunner, seed_iteration
@@ -299,6 +299,18 @@ def add_snapshot(algo: Algorithm, run: RunConfig, snapshot: Player, source_modul
     algo.env_runner_group.foreach_env_runner(
         lambda runner: runner.module[snapshot.name].set_state(weights), local_env_runner=True
     )
+
+
+def add_frozen_player(algo: Algorithm, run: RunConfig, player: NewPlayer, path: Path) -> None:
+    """Add ``player``, trained outside this algorithm (a double-oracle best response), as a frozen
+    module built as the run builds its side's learners, its weights the module saved at ``path``."""
+    algo.add_module(module_id=player.name, module_spec=learner_spec(run, player.side, player.reward_method))
+    load_frozen_module(algo, player.name, path)
+
+
+def has_module(algo: Algorithm, module_id: str) -> bool:
+    """Whether the algorithm's learner holds ``module_id`` (a restored checkpoint holds the modules it was saved with)."""
+    return all(r.get() for r in algo.learner_group.foreach_learner(lambda learner: module_id in learner.module))
 
 
 def restart_module(algo: Algorithm, module_id: str, source_module: str) -> None:

@@ -85,6 +85,7 @@ def best_response_config(run: RunConfig, exploited: Contestant, seed: int, env_s
     data["league"]["attacker_reward_methods"] = None  # one attacker: game.attacker_reward
     data["league"]["exploiters"] = []  # the best response trains alone
     data["league"]["exploiter_phases"] = "all"
+    data["league"]["double_oracle"] = {"env_steps": 0}  # a best response adds none itself
     # One opponent: nothing to weigh (PSRO's rule would need a meta-game the scratch run has not).
     data["league"]["pfsp"] = "uniform"
     data["league"]["frozen_players_explore"] = False  # trained against the mean actions it is measured against
@@ -210,16 +211,22 @@ def train_best_response(
     from_prior: bool = False,
 ) -> tuple[Path, int, list[CurvePoint]]:
     """Train one best response against ``exploited`` in ``scratch``: its saved module, env steps trained, learning curve."""
+    return train_built(build_best_response(run, run_dir, exploited, seed, env_steps, scratch, name, from_prior))
+
+
+def train_built(coordinator, stop=None) -> tuple[Path, int, list[CurvePoint]]:
+    """Train a best response that ``build_best_response`` built to its budget, then stop its algorithm: its
+    saved module, env steps trained, learning curve. ``stop`` (``StopRequests``) ends it between iterations."""
     from league.training.progress import ProgressReporter
 
-    coordinator = build_best_response(run, run_dir, exploited, seed, env_steps, scratch, name, from_prior)
+    scratch = coordinator.run_dir
     try:
         progress = ProgressReporter(scratch, 1)
         try:
-            coordinator.train(progress)
+            coordinator.train(progress, stop)
         finally:
             progress.close()
-        side = other_side(exploited.side)
+        side = coordinator.state.phase.side
         trained = coordinator.store.players(side=side, kind="snapshot")[-1]
         curve = [CurvePoint(row["env_steps"], wins_of(side, row["attacker_wins"], row["games"]), row["games"])
                  for row in coordinator.store.curve_points()]
@@ -227,6 +234,17 @@ def train_best_response(
     finally:
         coordinator.algo.stop()
         coordinator.store.close()
+
+
+def install(module: Path, run_dir: Path, name: str) -> Path:
+    """Copy a best response's module from its scratch run to ``players/NAME`` in one rename; its path."""
+    target = run_dir / "players" / name
+    partial = target.with_name(name + ".partial")
+    for stale in (target, partial):  # left by a call killed before it committed this player
+        shutil.rmtree(stale, ignore_errors=True)
+    shutil.copytree(module, partial)
+    partial.rename(target)
+    return target
 
 
 def next_version(players: list[Player], side: str, reward_method: int | None) -> int:
@@ -286,12 +304,7 @@ def train_best_responses(
             module, trained_steps, curve = train_best_response(
                 run, run_dir, exploited, seed, env_steps, scratch, name, from_prior
             )
-            target = run_dir / "players" / name
-            partial = target.with_name(name + ".partial")
-            for stale in (target, partial):  # left by a call killed before it committed this player
-                shutil.rmtree(stale, ignore_errors=True)
-            shutil.copytree(module, partial)
-            partial.rename(target)
+            target = install(module, run_dir, name)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
         new = NewPlayer(side, "best_response", version, reward_method, parent=None if isinstance(exploited, Mixture) else exploited.id, env_steps=trained_steps,

@@ -14,6 +14,9 @@ phase's ``MatchPlan``, trained, snapshotted at the phase end and checkpointed li
 A graceful stop (``league.training.stop``) lets the current iteration finish and makes its
 checkpoint due, so that a resume goes on from where the run stopped.
 
+With ``league.double_oracle`` the iteration that ends a self-play phase is followed by PSRO's
+step (``league.training.oracle``): a best response against the other side's Nash mixture joins the pool.
+
 The run's lifecycle (start, resume, the final evaluation) is ``league.training.lifecycle``.
 """
 
@@ -28,8 +31,9 @@ from typing import Any, Callable
 import numpy as np
 
 from league.analysis.nash import meta_game, meta_game_players, missing_pairs, mixture_by_player
+from league.analysis.regret_matching import restricted_distributions
 from league.config import RunConfig
-from league.core.league import League, Records
+from league.core.league import League, OracleStep, Records
 from league.core.payoff import aggregate, league_ratings
 from league.core.players import NewPlayer, Player
 from league.core.schedule import PhaseState
@@ -79,6 +83,9 @@ class Coordinator:
         self.runner_health = bridge.env_runner_health(algo)
         self.curves = LearningCurves(run, run_dir, lambda text: self.log(text))
         self.time_split = TimeSplit()  # this process's, for the run's last line
+        # Carries out PSRO's step (``league.training.oracle.carry_out``); set by the lifecycle, since
+        # the step trains a best response in a coordinator of its own (that module imports this one).
+        self.oracle: Callable[[Coordinator, OracleStep, StopRequests | None], Any] | None = None
         if state.rng:
             self.rng.bit_generator.state = state.rng
 
@@ -90,10 +97,21 @@ class Coordinator:
             self.log("ppo.bf16: the learner's networks compute in bfloat16" if bridge.learner_computes_in_bf16(self.run)
                      else "ppo.bf16: this CPU has no native bfloat16 matmuls; the learner computes in float32")
         self.set_trainable()
+        self.add_due_oracles(stop)  # (a run resumed between a phase's end and its oracle)
         while not self.state.training_done:
             if stop:
                 stop.check()
             self.train_iteration(progress, stop)
+            self.add_due_oracles(stop)
+
+    def add_due_oracles(self, stop: StopRequests | None = None) -> None:
+        """PSRO's step after each self-play phase (``league.double_oracle``; ``league.training.oracle``)."""
+        while (step := self.league.oracle_due(self.state.phase, self.state.training_done, self.store.players())) is not None:
+            if self.oracle is None:
+                raise RuntimeError("league.double_oracle: a coordinator without its oracle step (the lifecycle's)")
+            if stop:
+                stop.check()
+            self.oracle(self, step, stop)
 
     # ------------------------------------------------------------ iteration
     def train_iteration(self, progress: ProgressReporter, stop: StopRequests | None = None) -> None:
@@ -139,8 +157,8 @@ class Coordinator:
     def records(self, played: list[PairEvaluation]) -> Records:
         """The league's records as the store holds them (with ``played``, the meta-game's pairs evaluated now)."""
         players = self.store.players()
-        nash = self.nash_mixture(players, played) if self.run.league.pfsp == "nash" else None
-        return Records(players, self.store.outcome_rows("training"), nash)
+        strategy = self.meta_strategy(players, played) if self.run.league.pfsp == "nash" else None
+        return Records(players, self.store.outcome_rows("training"), strategy)
 
     def meta_game_evaluations(self) -> list[PairEvaluation]:
         """PSRO's rule (``league.pfsp: nash``) needs every pair of frozen players evaluated: the
@@ -151,12 +169,16 @@ class Coordinator:
         missing = missing_pairs(attackers, teams, aggregate(self.store.newest_evaluation_rows()))
         return self.evaluator.evaluate(missing) if missing else []
 
-    def nash_mixture(self, players: list[Player], played: list[PairEvaluation]) -> dict[int, float] | None:
-        """Each frozen player's Nash weight in the meta-game on each pair's newest evaluation, or None without one."""
+    def meta_strategy(self, players: list[Player], played: list[PairEvaluation]) -> dict[int, float] | None:
+        """Each frozen player's weight in its side's meta-strategy (``league.double_oracle.meta_solver``) of the
+        meta-game on each pair's newest evaluation, or None without one."""
         payoff = aggregate(self.store.newest_evaluation_rows())
         payoff.update({(r.attacker.id, r.team.id): (r.attacker_wins, r.games) for r in played})
         meta = meta_game(*meta_game_players(players), payoff)
-        return None if meta is None else mixture_by_player(meta)
+        if meta is None:
+            return None
+        return restricted_distributions(meta) if self.run.league.double_oracle.meta_solver == "regret_matching" else (
+            mixture_by_player(meta))
 
     def count(self, train: TrainResult, players: list[Player]) -> int:
         """Add this ``train()``'s episodes and env steps to the run's counts and the phase's progress; its env steps."""

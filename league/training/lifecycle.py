@@ -5,7 +5,8 @@
   ``begin``: the untrained policies frozen as version 0 and checkpoint 0 committed. A new
   run that fails or is stopped before that removes what it wrote.
 - ``resume_run`` / ``resume``: back to the newest intact checkpoint, the database rolled back
-  to it and the checkpoint directories it does not record removed.
+  to it and the checkpoint directories it does not record removed; the double-oracle best
+  responses committed after that checkpoint was written added to its algorithm.
 - ``finish``: the algorithm stopped, the whole frozen league evaluated on the fixed games
   (``evaluation.md``, the last file a run writes) unless that is already recorded.
 - ``finished_iteration``, ``stopped_message``: whether a run has anything left to do, and
@@ -32,7 +33,7 @@ from league.core.schedule import PhaseState
 from league.rllib import bridge
 from league.state.run_dir import LOCK_FILE, RunDirError, prune_checkpoints, record_config, usable_checkpoints
 from league.state.store import DB_NAME, LeagueStore
-from league.training import checkpoints
+from league.training import checkpoints, oracle
 from league.training.coordinator import Coordinator, RunState
 from league.training.progress import ProgressReporter
 from league.training.stop import StopRequests
@@ -58,6 +59,7 @@ def start(run: RunConfig, run_dir: Path, store: LeagueStore, check: Callable[[],
     algo = bridge.build_config(run, store.players(), plan).build_algo()
     check()
     coordinator = Coordinator(run, run_dir, store, algo, state, seed=run.seed, league=league)
+    coordinator.oracle = oracle.carry_out
     begin(coordinator, check)
     return coordinator
 
@@ -103,7 +105,11 @@ def resume(run: RunConfig, run_dir: Path, store: LeagueStore, iteration: int, ch
     prune_checkpoints(run_dir, store)
     last = store.last_checkpoint()
     assert last is not None  # ``iteration``'s, kept by the rollback
-    return Coordinator(run, run_dir, store, checkpoints.restore(run_dir / checkpoint), RunState.from_json(last[2]))
+    algo = checkpoints.restore(run_dir / checkpoint)
+    oracle.restore_modules(algo, run, run_dir, store.players())  # those that joined after the checkpoint was written
+    coordinator = Coordinator(run, run_dir, store, algo, RunState.from_json(last[2]))
+    coordinator.oracle = oracle.carry_out
+    return coordinator
 
 
 def intact_checkpoints(run_dir: Path, store: LeagueStore) -> tuple[list[tuple[int, str]], list[str]]:

@@ -159,7 +159,7 @@ def test_the_meta_game_reports_each_sides_groups_with_their_vertex_weight_and_ra
     meta = meta_game(attackers, teams, payoff)
     groups = {(g["side"], g["group"]): g for g in meta.as_json()["groups"]}
     assert set(groups) == {(side, group) for side in ("attacker", "team")
-                           for group in ("learners", "exploiters", "scripted_and_v0")}
+                           for group in ("learners", "exploiters", "oracles", "scripted_and_v0")}
     learners = groups[("attacker", "learners")]
     assert learners["players"] == ["attacker-m2-v1", "attacker-m2-v2"]
     assert learners["vertex_weight"] == pytest.approx(1.0, abs=TOL)

@@ -72,3 +72,27 @@ def test_every_kind_of_the_store_has_its_role_and_an_unknown_one_is_an_error():
     assert [role_of(kind).trains for kind in ("learner", "exploiter", "snapshot", "scripted")] == [True, True, False, False]
     with pytest.raises(ValueError, match="unknown kind of player 'mixture'"):
         NewPlayer("team", "mixture", 0)
+
+
+def test_a_double_oracle_step_is_due_after_each_self_play_phase_until_its_oracle_joined():
+    run = RunConfig.model_validate({"name": "x", "seed": 7, "league": {
+        "mode": "selfplay", "selfplay_phases": 3, "double_oracle": {"env_steps": 500}}})
+    league = League(run)
+    players = rows(league.first_members())
+    first, second = (PhaseState(index=k, side=side, start_iteration=0) for k, side in ((0, "attacker"), (1, "team")))
+    assert league.oracle_due(first, False, players) is None  # the first phase has not ended
+    step = league.oracle_due(second, False, players)
+    assert (step.phase, step.member.name, step.member.kind, step.exploited_side, step.env_steps) == (
+        0, "attacker-m2-oracle-v1", "oracle", "team", 500)
+    assert step.member.from_prior and step.member.role.in_pool
+    assert step.seed == league.oracle_due(second, False, players).seed  # from the run's seed alone
+    assert step.seed != League(run.model_copy(update={"seed": 8})).oracle_due(second, False, players).seed
+    joined = players + [Player(id=99, created_iteration=4, **step.member.columns())]
+    assert league.oracle_due(second, False, joined) is None
+    # The last phase's oracle is due once training is done; the third phase is the attacker's second.
+    third = PhaseState(index=2, side="attacker", start_iteration=0)
+    assert league.oracle_due(third, False, joined).member.name == "team-oracle-v1"
+    team = Player(id=100, **league.oracle_due(third, False, joined).member.columns())
+    assert league.oracle_due(third, False, joined + [team]) is None
+    assert league.oracle_due(third, True, joined + [team]).member.name == "attacker-m2-oracle-v2"
+    assert League(RUN).oracle_due(second, True, players) is None  # league.double_oracle off

@@ -495,11 +495,12 @@ def check_nash_groups(meta_json: dict, payoff: dict, players: list) -> None:
     weights = {(p["side"], p["player"]): p["nash_weight"] for p in meta_json["players"]}
     groups = meta_json["groups"]
     assert [(g["side"], g["group"]) for g in groups] == [
-        (side, group) for side in ("attacker", "team") for group in ("learners", "exploiters", "scripted_and_v0")]
+        (side, group) for side in ("attacker", "team") for group in ("learners", "exploiters", "oracles", "scripted_and_v0")]
     for side, chosen in (("attacker", attackers), ("team", teams)):
         expected = {
             "learners": [p.name for p in chosen if p.kind == "snapshot" and p.version > 0],
             "exploiters": [p.name for p in chosen if p.kind == "exploiter_snapshot"],
+            "oracles": [p.name for p in chosen if p.kind == "oracle"],
             "scripted_and_v0": [p.name for p in chosen
                                 if p.kind == "scripted" or (p.kind == "snapshot" and p.version == 0)],
         }
