@@ -37,8 +37,10 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from pathlib import Path
 
+from league.cluster import ClusterError, check_cluster
 from league.state.run_dir import RunDirError
 from league.studies.runs import train_runs_on_cluster
 from league.studies.table_one import Budget, Job, phases_override, table, task, train
@@ -74,6 +76,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    if args.address:
+        try:  # before anything is written: one line, not a hang, where no cluster answers
+            args.address = check_cluster(args.address, nullcontext)
+        except ClusterError as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     budgets = [Budget("episodes", n) for n in args.episodes] + [Budget("env_steps", n) for n in args.env_steps]
     budgets = budgets or [Budget("episodes", 10_000)]
     started = time.perf_counter()

@@ -156,6 +156,16 @@ def test_an_address_where_nothing_listens_fails_at_once_in_one_line(tmp_path):
     assert time.monotonic() - started < 120  # the imports take most of it; Ray's own client retried for minutes
 
 
+def test_reproduce_on_an_address_where_nothing_listens_fails_at_once_in_one_line(tmp_path):
+    address = f"127.0.0.1:{free_port()}"
+    done = subprocess.run([sys.executable, "-m", "league.reproduce", "--address", address, "--out", str(tmp_path / "out")],
+                          env={k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2, done.stderr[-3000:]
+    assert done.stderr.startswith(f"error: no Ray cluster at --address {address} ") and len(done.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+
+
 def test_ctrl_c_while_a_silent_address_is_asked_stops_the_run(tmp_path):
     """Something accepts the connection and never answers, as a GCS that hangs would: Ctrl-C
     during the wait stops the run at once, with nothing kept."""
