@@ -37,7 +37,7 @@ from pathlib import Path
 from league.cluster import ClusterError, check_cluster, quiet_node_deaths
 from league.config import ConfigError, RunConfig, load_config
 from league.training.lifecycle import (
-    finish, finished_iteration, intact_checkpoints, new_run, phase_count, resume_run, stopped_message,
+    finish, finished_iteration, intact_checkpoints, new_run, phase_budgets, phase_count, resume_run, stopped_message,
 )
 from league.training.progress import ProgressReporter
 from league.state.run_dir import (
@@ -184,12 +184,12 @@ def main(argv: list[str] | None = None) -> int:
             stop.install()
         stop.check()
         if args.resume:
-            progress = ProgressReporter(run_dir, phase_count(run))
+            progress = ProgressReporter(run_dir, phase_count(run), phase_budgets=phase_budgets(run))
             coordinator = resume_run(run_dir, run, store, progress.message)
         else:
             coordinator = new_run(run, run_dir, stop)
             store = coordinator.store
-            progress = ProgressReporter(run_dir, phase_count(run))
+            progress = ProgressReporter(run_dir, phase_count(run), phase_budgets=phase_budgets(run))
         progress.message(
             f"run directory {run_dir} ({'resumed at iteration ' + str(coordinator.state.iteration) if args.resume else 'new'})"
         )

@@ -62,6 +62,12 @@ class ProtocolSchedule:
             return scripted + snapshots
         return [snapshots[-1]] if spec.opponents == "latest" else scripted + [snapshots[-1]]
 
+    def env_step_budgets(self) -> list[int] | None:
+        """Each phase's budget in env steps; None when a phase ends after a number of episodes
+        (its env steps are not known before it is played)."""
+        budgets = [spec.env_steps for spec in self.league.phases]
+        return None if None in budgets else [b for b in budgets if b is not None]
+
     def finished(self, phase: PhaseState) -> bool:
         spec = self.league.phases[phase.index]
         if spec.env_steps is not None:
@@ -96,6 +102,10 @@ class SelfPlaySchedule:
         league = self.league
         team_budget = league.team_phase_env_steps
         return team_budget if side == "team" and team_budget is not None else league.phase_env_steps
+
+    def env_step_budgets(self) -> list[int] | None:
+        """Each phase's budget in env steps: the most it can take, as a phase that reaches its win rate ends sooner."""
+        return [self.budget(self.side(index)) for index in range(self.phases)]
 
     def finished(self, phase: PhaseState) -> bool:
         league = self.league

@@ -221,7 +221,7 @@ def train_built(coordinator, stop=None) -> tuple[Path, int, list[CurvePoint]]:
 
     scratch = coordinator.run_dir
     try:
-        progress = ProgressReporter(scratch, 1)
+        progress = ProgressReporter(scratch, 1, phase_budgets=coordinator.league.schedule.env_step_budgets())
         try:
             coordinator.train(progress, stop)
         finally:

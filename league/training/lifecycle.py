@@ -43,6 +43,11 @@ def phase_count(run: RunConfig) -> int:
     return League(run).schedule.phases
 
 
+def phase_budgets(run: RunConfig) -> list[int] | None:
+    """Each phase's env-step budget (``Schedule.env_step_budgets``), what the progress line's share and ETA count against."""
+    return League(run).schedule.env_step_budgets()
+
+
 # ------------------------------------------------------------ start
 def start(run: RunConfig, run_dir: Path, store: LeagueStore, check: Callable[[], None] = lambda: None) -> Coordinator:
     """A new run in a new store: the league's first members, the algorithm, and checkpoint 0

@@ -67,3 +67,15 @@ def test_the_first_protocol_phase_cannot_want_snapshots():
     for opponents in ("latest", "scripted_and_latest", "scripted_and_snapshots"):
         with pytest.raises(ValueError, match="first protocol phase"):
             RunConfig(name="p", league={"mode": "protocol", "phases": [{"learner": "team", "env_steps": 5, "opponents": opponents}]})
+
+
+def test_the_phases_env_step_budgets_are_known_where_no_phase_ends_after_its_episodes():
+    mixed = RunConfig(name="p", league={"mode": "protocol", "phases": [
+        {"learner": "attacker", "env_steps": 100}, {"learner": "team", "episodes": 50, "opponents": "latest"}]})
+    assert schedule_of(mixed).env_step_budgets() is None
+    steps = RunConfig(name="p", league={"mode": "protocol", "phases": [
+        {"learner": "attacker", "env_steps": 100}, {"learner": "team", "env_steps": 50, "opponents": "latest"}]})
+    assert schedule_of(steps).env_step_budgets() == [100, 50]
+    # self-play: each phase's most, by its side (a phase that reaches its win rate ends sooner)
+    selfplay = RunConfig(name="s", league={"selfplay_phases": 3, "phase_env_steps": 10_000, "team_phase_env_steps": 25_000})
+    assert schedule_of(selfplay).env_step_budgets() == [10_000, 25_000, 10_000]
