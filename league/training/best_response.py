@@ -206,12 +206,20 @@ def build_best_response(
     return coordinator
 
 
-def train_best_response(
-    run: RunConfig, run_dir: Path, exploited: Contestant, seed: int, env_steps: int, scratch: Path, name: str | None = None,
-    from_prior: bool = False,
+def train_and_install(
+    run: RunConfig, run_dir: Path, exploited: Contestant, seed: int, env_steps: int, name: str, from_prior: bool = False,
+    stop=None,
 ) -> tuple[Path, int, list[CurvePoint]]:
-    """Train one best response against ``exploited`` in ``scratch``: its saved module, env steps trained, learning curve."""
-    return train_built(build_best_response(run, run_dir, exploited, seed, env_steps, scratch, name, from_prior))
+    """Train one best response against ``exploited`` in a scratch run inside ``run_dir`` (removed after) and
+    install its module as ``players/NAME``: that path, env steps trained, learning curve. ``stop``
+    (``StopRequests``) ends it between iterations."""
+    scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=run_dir))
+    try:
+        built = build_best_response(run, run_dir, exploited, seed, env_steps, scratch, name, from_prior)
+        module, trained, curve = train_built(built, stop)
+        return install(module, run_dir, name), trained, curve
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 def train_built(coordinator, stop=None) -> tuple[Path, int, list[CurvePoint]]:
@@ -295,18 +303,11 @@ def train_best_responses(
     for seed in seeds:
         started = time.perf_counter()
         side = other_side(exploited.side)
-        scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=run_dir))
-        try:
-            config = best_response_config(run, exploited, seed, env_steps, from_prior)
-            reward_method = config.game.attacker_reward if side == "attacker" else None
-            version = next_version(store.players(), side, reward_method)
-            name = NewPlayer(side, "best_response", version, reward_method).name
-            module, trained_steps, curve = train_best_response(
-                run, run_dir, exploited, seed, env_steps, scratch, name, from_prior
-            )
-            target = install(module, run_dir, name)
-        finally:
-            shutil.rmtree(scratch, ignore_errors=True)
+        config = best_response_config(run, exploited, seed, env_steps, from_prior)
+        reward_method = config.game.attacker_reward if side == "attacker" else None
+        version = next_version(store.players(), side, reward_method)
+        name = NewPlayer(side, "best_response", version, reward_method).name
+        target, trained_steps, curve = train_and_install(run, run_dir, exploited, seed, env_steps, name, from_prior)
         new = NewPlayer(side, "best_response", version, reward_method, parent=None if isinstance(exploited, Mixture) else exploited.id, env_steps=trained_steps,
                         checkpoint=str(target.relative_to(run_dir)), seed=seed, env_step_budget=env_steps, from_prior=from_prior)
         provisional = new.unrecorded()

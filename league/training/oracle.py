@@ -27,8 +27,6 @@ same mixture, same start).
 
 from __future__ import annotations
 
-import shutil
-import tempfile
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -40,7 +38,7 @@ from league.core.league import OracleStep
 from league.core.payoff import aggregate, league_ratings
 from league.core.players import Player
 from league.rllib import bridge
-from league.training.best_response import SCRATCH_PREFIX, build_best_response, install, train_built
+from league.training.best_response import train_and_install
 from league.training.records import timed
 
 if TYPE_CHECKING:
@@ -69,14 +67,8 @@ def carry_out(coordinator: Coordinator, step: OracleStep, stop: StopRequests | N
     else:
         mixture = league_mixture(f"nash-{step.exploited_side}@{iteration}", store.players(), rows, iteration)
     member = step.member
-    scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=run_dir))
-    try:
-        trainer = build_best_response(oracle_run(run), run_dir, mixture, step.seed, step.env_steps, scratch, member.name,
-                                      from_prior=True)
-        (module, trained, curve), training_seconds = timed(lambda: train_built(trainer, stop))
-        target = install(module, run_dir, member.name)
-    finally:
-        shutil.rmtree(scratch, ignore_errors=True)
+    (target, trained, curve), training_seconds = timed(lambda: train_and_install(
+        oracle_run(run), run_dir, mixture, step.seed, step.env_steps, member.name, from_prior=True, stop=stop))
     member = replace(member, env_steps=trained, checkpoint=str(target.relative_to(run_dir)))
     bridge.add_frozen_player(coordinator.algo, run, member, target)
     coordinator.set_trainable()
