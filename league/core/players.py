@@ -73,10 +73,11 @@ class Role:
     in_pool: ClassVar[bool] = False  # a frozen trained player among the other side's learners' opponents
     frozen_as: ClassVar[Kind | None] = None  # a trained role: the kind of its snapshots
     first_snapshot: ClassVar[int] = 0  # a trained role: the version of its first snapshot
+    suffix: ClassVar[str] = "-v{version}"  # what follows the side's base name (``base_name``) in its players' names
 
     def name(self, player: Columns) -> str:
         """Display name, also the module id of learned players."""
-        return f"{base_name(player)}-v{player.version}"
+        return base_name(player) + self.suffix.format(version=player.version)
 
     def modules(self, player: Columns) -> dict[str, str]:
         """Module id per agent of the player's side: one module plays all of them."""
@@ -88,9 +89,7 @@ class Learner(Role):
     trains = True
     frozen_as = "snapshot"
     first_snapshot = 0  # its untrained policy, frozen when the run begins
-
-    def name(self, player: Columns) -> str:
-        return base_name(player)
+    suffix = ""
 
 
 class Snapshot(Role):
@@ -103,24 +102,18 @@ class Exploiter(Role):
     trains = True
     frozen_as = "exploiter_snapshot"
     first_snapshot = 1  # after its first phase: its untrained policy never joins the pool
-
-    def name(self, player: Columns) -> str:
-        return f"{base_name(player)}-exploiter"
+    suffix = "-exploiter"
 
 
 class ExploiterSnapshot(Role):
     kind = "exploiter_snapshot"
     in_pool = True
-
-    def name(self, player: Columns) -> str:
-        return f"{base_name(player)}-exploiter-v{player.version}"
+    suffix = "-exploiter-v{version}"
 
 
 class BestResponse(Role):
     kind = "best_response"
-
-    def name(self, player: Columns) -> str:
-        return f"{base_name(player)}-br{player.version}"
+    suffix = "-br{version}"
 
 
 class Oracle(Role):
@@ -128,9 +121,7 @@ class Oracle(Role):
 
     kind = "oracle"
     in_pool = True
-
-    def name(self, player: Columns) -> str:
-        return f"{base_name(player)}-oracle-v{player.version}"
+    suffix = "-oracle-v{version}"
 
 
 class Scripted(Role):
