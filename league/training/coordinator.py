@@ -100,6 +100,8 @@ class Coordinator:
         self.add_due_oracles(stop)  # (a run resumed between a phase's end and its oracle)
         while not self.state.training_done:
             if stop:
+                if stop.requested:
+                    self.checkpoint_if_missing()  # a signal that came after the iteration's checkpoint decision
                 stop.check()
             self.train_iteration(progress, stop)
             self.add_due_oracles(stop)
@@ -258,6 +260,17 @@ class Coordinator:
                 store.record_checkpoint(iteration, str(record.checkpoint.relative_to(self.run_dir)), json.dumps(asdict(st)))
         if record.checkpoint is not None:
             store.backup(record.checkpoint / DB_NAME)  # what `--resume` restores a damaged league.db from
+
+    def checkpoint_if_missing(self) -> None:
+        """Checkpoint the last committed iteration unless it already was: the run as ``commit`` would have saved it."""
+        st, store = self.state, self.store
+        last = store.last_checkpoint()
+        if last is not None and last[0] == st.iteration:
+            return
+        path = checkpoints.checkpoint(self.algo, self.run_dir, st.iteration)
+        with store.transaction():
+            store.record_checkpoint(st.iteration, str(path.relative_to(self.run_dir)), json.dumps(asdict(st)))
+        store.backup(path / DB_NAME)
 
     def report_runner_health(self) -> None:
         """Say when remote env runners are lost (a node died) or come back."""
