@@ -8,16 +8,19 @@ curve point when it holds against every curve opponent there, by 95% Wilson inte
 
 * ``protocol`` (the flagship's): the attacker wins more often than lead intercept against
   the paper's team, intervals apart; the team lets every attacker it trains against win less
-  often than the best scripted team does, intervals apart;
+  often than the best scripted team does, intervals apart (even, where the best scripted
+  team loses no game to that attacker: nothing is below it);
 * ``league``: each attacker is at least even with the best scripted attacker against every
-  scripted team (its interval reaches the best one's); the team lets every attacker win
-  less often than the best scripted team does, intervals apart.
+  scripted team (its interval reaches the best one's); the team as in ``protocol``.
 
-Printed per run: for each learner, the env steps of its own and the run's wall time of
-training iterations at the first point where its criterion holds ("never" if none), and the
-run's time to criterion, the latest of its learners' (the time the run needed to be strong
-had it stopped there); then the mean and range over the runs. The wall times are those the
-runs recorded: compare configs only on runs trained on one machine under the same load.
+Printed per run: for each learner, the env steps of its own at the first point where its
+criterion holds ("never" if none), and the run's time to criterion, the latest of its
+learners' (the time the run needed to be strong had it stopped there), in the run's env
+steps and in its wall time of training iterations; then the mean and range over the runs.
+The wall times are those the runs recorded: compare them only for runs trained on one
+machine under the same load. The env steps do not depend on the load: with each config's
+env steps per second measured side by side (``bench/train_throughput.py``), they give
+times to criterion that can be compared.
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ from __future__ import annotations
 import argparse
 from itertools import accumulate
 from pathlib import Path
+
+import numpy as np
 
 from envs.scripted import PAPER_TEAM
 from league.analysis.statistics import wilson_interval
@@ -45,6 +50,8 @@ def holds(criterion: str, curve: Curve, point: int) -> bool:
     scripted = [stats for kind, _, stats in curve.references if kind == "scripted"]
     if curve.learner.side == "team":  # below the best scripted team's rate, intervals apart
         best = min(scripted, key=lambda s: s.attacker_wins / s.games)
+        if best.attacker_wins == 0:  # no team can be below a scripted team that never loses: even is the best there is
+            return mine[0] <= interval(best)[1]
         return mine[1] < interval(best)[0]
     if criterion == "protocol":
         if curve.opponent.name != PAPER_TEAM_NAME:
@@ -63,21 +70,23 @@ def first_strong(criterion: str, curves: list[Curve]) -> tuple[int, int] | None:
     return None
 
 
-def measure(run_dir: Path, criterion: str) -> tuple[dict[str, tuple[int, float] | None], float]:
-    """Per learner, (its env steps, the run's training seconds) at its first strong point; and the run's training seconds."""
+def measure(run_dir: Path, criterion: str) -> tuple[dict[str, tuple[int, int, float] | None], float]:
+    """Per learner, at its first strong point: (its own env steps, the run's env steps, the run's
+    training seconds); and the run's training seconds."""
     _, store = open_run(run_dir)
     try:
         curves, iterations = read_curves(store), store.iteration_rows()
     finally:
         store.close()
     elapsed = dict(zip([row["iteration"] for row in iterations], accumulate(row["wall_seconds"] for row in iterations)))
+    run_steps = {row["iteration"]: row["env_steps"] for row in iterations}
     by_learner: dict[str, list[Curve]] = {}
     for curve in curves:
         by_learner.setdefault(curve.learner.name, []).append(curve)
     found = {}
     for name, learner_curves in by_learner.items():
         strong = first_strong(criterion, learner_curves)
-        found[name] = None if strong is None else (strong[0], elapsed[strong[1]])
+        found[name] = None if strong is None else (strong[0], run_steps[strong[1]], elapsed[strong[1]])
     return found, elapsed[max(elapsed)]
 
 
@@ -86,21 +95,24 @@ def main() -> None:
     parser.add_argument("--run-dirs", type=Path, nargs="+", required=True, help="finished runs of one config, one per seed")
     parser.add_argument("--criterion", choices=("protocol", "league"), required=True)
     args = parser.parse_args()
-    times = []
+    times, steps = [], []
     for run_dir in args.run_dirs:
         found, total = measure(run_dir, args.criterion)
-        cells = [f"{name} {'never' if at is None else f'at {at[0]:,} env steps, {at[1]:.0f} s'}" for name, at in found.items()]
-        strong = None if any(at is None for at in found.values()) else max(at[1] for at in found.values())
-        times.append(strong)
-        print(f"{run_dir}: {'; '.join(cells)}; strong after {'never' if strong is None else f'{strong:.0f} s'} "
-              f"of {total:.0f} s of training iterations")
-    reached = [t for t in times if t is not None]
+        cells = [f"{name} {'never' if at is None else f'at {at[0]:,} env steps of its own'}" for name, at in found.items()]
+        last = None if any(at is None for at in found.values()) else max(found.values(), key=lambda at: at[2])
+        times.append(None if last is None else last[2])
+        steps.append(None if last is None else last[1])
+        print(f"{run_dir}: {'; '.join(cells)}; strong after "
+              + ("never" if last is None else f"{last[1]:,} env steps of the run, {last[2]:.0f} s")
+              + f" of {total:.0f} s of training iterations")
+    reached = [(t, n) for t, n in zip(times, steps) if t is not None]
     if reached:
-        print(f"time to criterion: mean {sum(reached) / len(reached):.0f} s, range [{min(reached):.0f}, {max(reached):.0f}] s "
+        seconds, env_steps = [t for t, _ in reached], [n for _, n in reached]
+        print(f"time to criterion: mean {np.mean(seconds):.0f} s, range [{min(seconds):.0f}, {max(seconds):.0f}] s; "
+              f"mean {np.mean(env_steps):,.0f} env steps, range [{min(env_steps):,}, {max(env_steps):,}]; "
               f"over {len(reached)} of {len(times)} runs")
     else:
         print(f"time to criterion: never reached in {len(times)} runs")
-
 
 if __name__ == "__main__":
     main()
