@@ -177,9 +177,6 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     # read again: other invocations (other arms or seeds, into the same OUT) may have added theirs
     walls_file.write_text(json.dumps({**read_walls(), **{t.run.label: t.seconds for t in trained if not t.reused}}, indent=1))
-    if args.address:
-        for t in trained:
-            print(f"{t.run.label}: {'finished before' if t.reused else f'trained on node {t.node}'}")
 
     finals: dict[tuple[str, int], dict[str, Player]] = {}
     exploiter_steps: dict[tuple[str, int], dict[str, int]] = {}

@@ -101,16 +101,13 @@ def main(argv: list[str] | None = None) -> int:
     logs = args.out / "logs"
     runs = [training_run(j, logs / f"{j.variant}-{j.budget.label}-method{j.method}-seed{j.seed}.log") for j in jobs]
     try:
-        trained = train_runs(runs, args.out, args.jobs, args.cpus_per_run, args.address)
+        train_runs(runs, args.out, args.jobs, args.cpus_per_run, args.address)
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except RunFailed as err:
         print(f"error: {err}; run this command again to resume", file=sys.stderr)
         return 1
-    if args.address:
-        for done in trained:
-            print(f"{done.run.run_dir}: {'finished before' if done.reused else f'trained on node {done.node}'}")
     wall = time.perf_counter() - started
     from league.studies.seed_curves import study
 

@@ -20,8 +20,8 @@ instance that holds the trials, and at most ``jobs`` trials run at once.
   finished of a run whose directory is not, a new experiment starts, and its trials reuse
   every finished run directory without training.
 * **Output.** Tune's own console output is off; each trial's lines (``training ... ->``,
-  ``resuming``, ``reusing``) and the study's progress line (``progress_line``) are printed
-  here, at the start and after each run.
+  ``resuming``, ``reusing``; on a cluster, ``LABEL: trained on node ID``) and the study's
+  progress line (``progress_line``) are printed here, at the start and after each run.
 """
 
 from __future__ import annotations
@@ -128,8 +128,8 @@ class StudyProgress(tune.Callback):
     Tune keeps this callback in its experiment state and restores it with the experiment,
     so the counts and the clock start in ``setup``, at the start of every ``fit``."""
 
-    def __init__(self, runs: list[TrainingRun], parallel: int):
-        self.runs, self.parallel = runs, parallel
+    def __init__(self, runs: list[TrainingRun], parallel: int, on_cluster: bool):
+        self.runs, self.parallel, self.on_cluster = runs, parallel, on_cluster
 
     def setup(self, **info: Any) -> None:
         self.started = time.monotonic()
@@ -154,6 +154,8 @@ class StudyProgress(tune.Callback):
                 self.reused += 1
             else:
                 self.trained.append(result["seconds"])
+                if self.on_cluster:
+                    say(f"{trial.config['run']['label']}: trained on node {result['node']}")
         self.show()
 
     def on_trial_error(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
@@ -161,9 +163,9 @@ class StudyProgress(tune.Callback):
         say(f"{run['label']} failed ({run['run_dir']}; its output: {run['log']})")
 
 
-def experiment_name(runs: list[TrainingRun], jobs: int | None, cpus_per_run: float) -> str:
+def experiment_name(runs: list[TrainingRun], jobs: int | None, cpus_per_run: float, on_cluster: bool) -> str:
     """The experiment's folder: a digest of everything Tune pins when it restores it."""
-    pinned = json.dumps([[param(r) for r in runs], jobs, cpus_per_run], sort_keys=True)
+    pinned = json.dumps([[param(r) for r in runs], jobs, cpus_per_run, on_cluster], sort_keys=True)
     return "runs-" + hashlib.sha256(pinned.encode()).hexdigest()[:12]
 
 
@@ -213,7 +215,7 @@ def train_runs(runs: list[TrainingRun], out: Path, jobs: int | None = None, cpus
                      logging_level=logging.ERROR, log_to_driver=False)
     try:
         with quiet_tune():
-            return fit(runs, out, jobs if jobs or address else 1, cpus_per_run)
+            return fit(runs, out, jobs if jobs or address else 1, cpus_per_run, on_cluster=address is not None)
     finally:
         if started_ray:
             ray.shutdown()
@@ -239,10 +241,10 @@ def quiet_tune() -> Iterator[None]:
                 os.environ[key] = value
 
 
-def fit(runs: list[TrainingRun], out: Path, jobs: int | None, cpus_per_run: float) -> list[Trained]:
+def fit(runs: list[TrainingRun], out: Path, jobs: int | None, cpus_per_run: float, on_cluster: bool) -> list[Trained]:
     """``train_runs`` once Ray is up: restore or start the experiment, fit it, read the outcome."""
     trainable = tune.with_resources(trial, {"cpu": cpus_per_run})
-    path = (out / TUNE_DIR).resolve() / experiment_name(runs, jobs, cpus_per_run)
+    path = (out / TUNE_DIR).resolve() / experiment_name(runs, jobs, cpus_per_run, on_cluster)
     tuner = restored(path, trainable)
     if tuner is None:
         shutil.rmtree(path, ignore_errors=True)
@@ -252,7 +254,7 @@ def fit(runs: list[TrainingRun], out: Path, jobs: int | None, cpus_per_run: floa
             param_space={"run": tune.grid_search([param(r) for r in runs])},
             tune_config=tune.TuneConfig(max_concurrent_trials=jobs, trial_dirname_creator=trial_dirname),
             run_config=tune.RunConfig(storage_path=str(path.parent), name=path.name, verbose=0,
-                                      callbacks=[StudyProgress(runs, parallel)]),
+                                      callbacks=[StudyProgress(runs, parallel, on_cluster)]),
         )
     grid = tuner.fit()
     by_dir = {r.config["run"]["run_dir"]: r for r in grid if r.config}
