@@ -7,7 +7,8 @@ the same run), its output appended to its log. A trial asks ``cpus_per_run`` CPU
 instance that holds the trials, and at most ``jobs`` trials run at once.
 
 * **Where.** Without ``address``: a Ray instance of this process's own (``jobs x
-  cpus_per_run`` CPUs, no dashboard), shut down at the end; with ``address``: the Ray cluster
+  cpus_per_run`` CPUs, no dashboard), shut down at the end (one already started in this
+  process is used as it is); with ``address``: the Ray cluster
   there (checked first by the caller, ``league.cluster.check_cluster``), whose scheduler
   spreads the trials over its nodes. Run directories, logs and ``OUT/.tune`` must then be on
   storage every node reads and writes (a shared filesystem); Tune checks that it sees its
