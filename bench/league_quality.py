@@ -27,7 +27,10 @@ intervals), and its exploitability: ``--seeds`` best responses (``league.exploit
 mean) of ``--br-env-steps`` each, against a team, or ``--team-br-env-steps`` (a team's best
 response to an attacker: the team learns more slowly). Per arm, the mean exploitability over training seeds with
 its Student-t 95% interval over the training seeds (``mean_interval``). Writes ``OUT/league_quality.md``.
-Restarts reuse finished runs and best responses (and resume unfinished runs).
+Each run is a Ray Tune trial (``league.studies.trials``; its output in ``OUT/ARM-seed-S.log``),
+``--jobs`` at a time, or on the Ray cluster at ``--address`` (``--cpus-per-run`` CPUs each; OUT
+on storage every node shares). Restarts reuse finished runs and best responses (and resume
+unfinished runs).
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ import argparse
 import json
 import subprocess
 import sys
-import time
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -47,8 +50,9 @@ from league.evaluation.engine import play_fixed_games, policies_of
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, wilson_interval
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
-from league.studies.runs import finished, train_run, train_runs_on_cluster
-from league.state.run_dir import open_run
+from league.cluster import ClusterError, check_cluster
+from league.studies.trials import RunFailed, TrainingRun, train_runs
+from league.state.run_dir import RunDirError, open_run
 
 ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance", "league-psro")
 PFSP_OF_ARM = {"league-variance": "variance", "league-psro": "nash"}  # the others: squared
@@ -124,8 +128,10 @@ def win_cell(wins: int, games: int) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=Path("runs/league_quality"))
-    parser.add_argument("--address", help="train the arms as tasks of this Ray cluster (OUT on shared storage)")
-    parser.add_argument("--cpus-per-run", type=float, default=2.0, help="with --address: CPUs per arm's run")
+    parser.add_argument("--jobs", type=int, help="runs trained side by side (default: 1; with --address: as many as "
+                        "the cluster's CPUs hold)")
+    parser.add_argument("--address", help="train the arms as Tune trials on this Ray cluster (OUT on shared storage)")
+    parser.add_argument("--cpus-per-run", type=float, default=2.0, help="CPUs Ray reserves per run (default 2)")
     parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=ARMS)
     parser.add_argument("--phases", type=int, default=6, help="alternating phases (even: both sides the same budget)")
     parser.add_argument("--phase-env-steps", type=int, default=200_000)
@@ -141,6 +147,14 @@ def main(argv: list[str] | None = None) -> int:
     args.team_br_env_steps = args.team_br_env_steps or args.br_env_steps
     if args.phases < 2 or args.phases % 2 or min(args.phase_env_steps, args.br_env_steps, args.team_br_env_steps, args.seeds, args.episodes) < 1:
         parser.error("--phases must be even and at least 2; budgets, --seeds and --episodes at least 1")
+    if (args.jobs is not None and args.jobs < 1) or args.cpus_per_run <= 0:
+        parser.error("--jobs must be at least 1 and --cpus-per-run positive")
+    if args.address:
+        try:  # before anything is written: one line, not a hang, where no cluster answers
+            args.address = check_cluster(args.address, nullcontext)
+        except ClusterError as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     args.out.mkdir(parents=True, exist_ok=True)
     walls_file = args.out / "wall_times.json"
 
@@ -148,23 +162,25 @@ def main(argv: list[str] | None = None) -> int:
         return json.loads(walls_file.read_text()) if walls_file.exists() else {}
     runs = [(arm, seed, args.out / arm / f"seed-{seed}") for arm in args.arms for seed in args.train_seeds]
 
-    def task(arm: str, seed: int, run_dir: Path) -> tuple:
-        """``train_run``'s arguments for one arm's run of one training seed."""
-        return "selfplay_league", run_dir, arm_overrides(arm, args, seed), f"{arm} seed {seed}", args.out / f"{arm}-seed-{seed}.log"
+    def training_run(arm: str, seed: int, run_dir: Path) -> TrainingRun:
+        """One arm's run of one training seed."""
+        return TrainingRun("selfplay_league", run_dir, tuple(arm_overrides(arm, args, seed)), f"{arm} seed {seed}",
+                           args.out / f"{arm}-seed-{seed}.log")
 
-    if args.address:  # all runs at once on the cluster; the loop below then reuses them
-        pending = [run for run in runs if not finished(run[2])]
-        for (arm, seed, _), node in zip(pending, train_runs_on_cluster(args.address, [task(*run) for run in pending], args.cpus_per_run)):
-            print(f"{arm} seed {seed}: trained on node {node}")
+    try:
+        trained = train_runs([training_run(*run) for run in runs], args.out, args.jobs, args.cpus_per_run, args.address)
+    except RunDirError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except RunFailed as err:
+        print(f"error: {err}; run this command again to resume", file=sys.stderr)
+        return 1
+    # read again: other invocations (other arms or seeds, into the same OUT) may have added theirs
+    walls_file.write_text(json.dumps({**read_walls(), **{t.run.label: t.seconds for t in trained if not t.reused}}, indent=1))
 
     finals: dict[tuple[str, int], dict[str, Player]] = {}
     exploiter_steps: dict[tuple[str, int], dict[str, int]] = {}
     for arm, seed, run_dir in runs:
-        if not finished(run_dir):
-            started = time.perf_counter()
-            train_run(*task(arm, seed, run_dir))
-            # read again: other invocations (other arms or seeds, into the same OUT) may have added theirs
-            walls_file.write_text(json.dumps({**read_walls(), f"{arm} seed {seed}": time.perf_counter() - started}, indent=1))
         run, store = open_run(run_dir)
         try:
             players = store.players()

@@ -13,38 +13,39 @@ attacker's) and ``OUT/VARIANT/BUDGET/curves-methodM/`` (``league.studies.seed_cu
 * Variants: ``--variants paper terminal``; ``paper`` keeps the configs' rewards (no
   terminal reward), ``terminal`` adds ``game.terminal_reward`` = ``--terminal-reward``.
 * ``--team`` also trains the team against the frozen attacker (phase 2, same budget).
-* Restarts reuse finished runs (``evaluation.md`` written) and resume unfinished ones
-  from their last checkpoint (``league.run --resume``).
-* ``--jobs K`` trains K runs side by side (each its own process and Ray instance; their
-  output goes to ``OUT/logs/``).
-* ``--address ADDR`` trains every run as a task of the Ray cluster at ``ADDR`` instead
-  (``--cpus-per-run`` CPUs each, default 2), so the runs spread over its nodes; ``OUT``
-  must be on storage every node shares. Each run's node is printed.
+* Each run is a Ray Tune trial (``league.studies.trials``), its own ``league.run`` process
+  and Ray instance, its output in ``OUT/logs/``; a progress line with the time left follows
+  each run. Restarts restore the Tune experiment in ``OUT/.tune``: they reuse finished runs
+  (``evaluation.md`` written) and resume unfinished ones from their last checkpoint
+  (``league.run --resume``).
+* ``--jobs K`` trains K runs side by side (default 1).
+* ``--address ADDR`` trains the runs on the Ray cluster at ``ADDR`` instead (``--cpus-per-run``
+  CPUs each, default 2; as many at once as it holds unless ``--jobs``), so they spread over
+  its nodes; ``OUT`` must be on storage every node shares. Each run's node is printed.
 
 The whole two-budget Table 1 (3 methods x 3 seeds x 2 budgets x 2 variants) is one command
 (2,000,000 env steps stands for the convergence budget: read it off the learning curves)::
 
     python -m league.reproduce --seeds 3 --episodes 10000 --env-steps 2000000 --variants paper terminal --jobs 2
 
-Exit codes: 0 done; 2 a bad argument, or a run directory another process is training;
-1 a training run that failed (its output says why; run the command again to resume).
+Exit codes: 0 done; 2 a bad argument, a run directory another process is training, or no Ray
+cluster at ``--address``; 1 a training run that failed or was stopped (its log says why; run
+the command again to resume).
 """
 
 from __future__ import annotations
 
 import argparse
-import subprocess
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from pathlib import Path
 
+from league.cli import command_parser
 from league.cluster import ClusterError, check_cluster
 from league.state.run_dir import RunDirError
-from league.studies.runs import train_runs_on_cluster
-from league.studies.table_one import Budget, Job, phases_override, table, task, train
-from league.cli import command_parser
+from league.studies.table_one import Budget, Job, phases_override, table, training_run
+from league.studies.trials import RunFailed, train_runs
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = command_parser(
@@ -58,14 +59,15 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--team", action="store_true", help="also train the team against the frozen attacker (phase 2)")
     parser.add_argument("--evaluation-episodes", type=int, default=1000)
     parser.add_argument("--methods", type=int, nargs="+", default=[1, 2, 3], choices=[1, 2, 3])
-    parser.add_argument("--jobs", type=int, default=1, help="runs trained side by side")
-    parser.add_argument("--address", help="a Ray cluster to train the runs on, as tasks (default: on this machine)")
-    parser.add_argument("--cpus-per-run", type=float, default=2.0, help="with --address: CPUs Ray reserves per run")
+    parser.add_argument("--jobs", type=int, help="runs trained side by side (default: 1; with --address: as many as "
+                        "the cluster's CPUs hold)")
+    parser.add_argument("--address", help="a Ray cluster to train the runs on, as Tune trials (default: on this machine)")
+    parser.add_argument("--cpus-per-run", type=float, default=2.0, help="CPUs Ray reserves per run (default 2)")
     parser.add_argument("--out", type=Path, default=Path("runs/reproduce"))
     parser.add_argument("--set", dest="overrides", action="append", default=[], help="extra config overrides")
     args = parser.parse_args(argv)
     budgets = [*args.episodes, *args.env_steps]
-    if args.seeds < 1 or args.jobs < 1 or args.evaluation_episodes < 1 or any(b < 1 for b in budgets):
+    if args.seeds < 1 or (args.jobs is not None and args.jobs < 1) or args.evaluation_episodes < 1 or any(b < 1 for b in budgets):
         parser.error("--seeds, --jobs, --evaluation-episodes and every budget must be at least 1")
     if args.cpus_per_run <= 0:
         parser.error("--cpus-per-run must be positive")
@@ -97,26 +99,14 @@ def main(argv: list[str] | None = None) -> int:
                     run_dir = args.out / variant / budget.label / f"method{method}-seed{seed}"
                     jobs.append(Job(variant, budget, method, seed, run_dir, (*overrides, *args.overrides)))
     logs = args.out / "logs"
-    logs.mkdir(parents=True, exist_ok=True)
-    names = [logs / f"{j.variant}-{j.budget.label}-method{j.method}-seed{j.seed}.log" for j in jobs]
+    runs = [training_run(j, logs / f"{j.variant}-{j.budget.label}-method{j.method}-seed{j.seed}.log") for j in jobs]
     try:
-        if args.address:
-            nodes = train_runs_on_cluster(args.address, [task(j, log) for j, log in zip(jobs, names)], args.cpus_per_run)
-            for job, node in zip(jobs, nodes):
-                print(f"{job.run_dir}: trained on node {node}")
-        elif args.jobs == 1:
-            for job in jobs:
-                train(job, None)
-        else:
-            with ThreadPoolExecutor(args.jobs) as pool:
-                for future in [pool.submit(train, job, log) for job, log in zip(jobs, names)]:
-                    future.result()
+        train_runs(runs, args.out, args.jobs, args.cpus_per_run, args.address)
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    except subprocess.CalledProcessError as err:
-        print(f"error: training failed (exit {err.returncode}): {' '.join(err.cmd[1:])}; run this command again to resume",
-              file=sys.stderr)
+    except RunFailed as err:
+        print(f"error: {err}; run this command again to resume", file=sys.stderr)
         return 1
     wall = time.perf_counter() - started
     from league.studies.seed_curves import study

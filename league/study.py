@@ -1,8 +1,9 @@
 """A study over training seeds: ``python -m league.study --config C [C ...] --seeds S [S ...] --out DIR``.
 
 Each config is an arm. For every arm and seed, trains ``league.run --config C --set seed=S``
-in ``DIR/ARM/seed-S/`` to its end (a finished run is reused, an unfinished one resumed,
-``league.studies.runs``), then measures the run's final players against every scripted
+in ``DIR/ARM/seed-S/`` to its end, each run a Ray Tune trial (``league.studies.trials``: a
+finished run is reused, an unfinished one resumed; its output in ``DIR/logs/ARM-seed-S.log``;
+a progress line with the time left after each run), then measures the run's final players against every scripted
 player of the other side on the held-out test games (``league.studies.beats_scripted``:
 the pairs not yet played are played and recorded in the run's store). Prints, per arm, a
 table with a column per seed (the rate, its 95% Wilson interval and the verdict within
@@ -10,27 +11,35 @@ that seed's games) and over the seeds (the mean with a Student-t 95% interval, a
 paired t-test of trained minus reference), then the runs' training time and speed;
 ``--page FILE`` also writes them to FILE.
 
+``--jobs K`` trains K runs side by side (default 1); ``--address ADDR`` trains them on the Ray
+cluster at ADDR instead (``--cpus-per-run`` CPUs each, as many at once as it holds unless
+``--jobs``), so they spread over its nodes; DIR must then be on storage every node shares.
+Run again, the same command restores the Tune experiment in ``DIR/.tune`` and reuses the
+finished runs.
+
 ``--tuning-seeds`` names the seeds that chose the arms' settings: the page prints them,
 and a study seed among them is refused, so that the reported seeds are not those that chose.
 
 Exit codes: 0 done; 2 a bad argument (a missing config, a tuning seed among the seeds, a run
-directory another process is training); 1 a training run that failed (run again to resume).
+directory of another config or that another process is training, no Ray cluster at
+``--address``); 1 a training run that failed or was stopped (run again to resume).
 """
 
 from __future__ import annotations
 
-import subprocess
 import sys
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
 import torch
 
 from league.cli import command_parser, count
+from league.cluster import ClusterError, check_cluster
 from league.config import ConfigError, load_config
 from league.state.run_dir import RunDirError, open_run
 from league.studies.beats_scripted import measure_on_test_games, table
-from league.studies.runs import train_run
+from league.studies.trials import RunFailed, TrainingRun, train_runs
 
 
 def speed(run_dir: Path) -> str:
@@ -41,6 +50,13 @@ def speed(run_dir: Path) -> str:
     finally:
         store.close()
     return f"{steps:,} env steps in {seconds:.0f} s of training iterations ({steps / seconds:,.0f} env steps/s)"
+
+
+def study_run(out: Path, config: str, seed: int, overrides: list[str]) -> TrainingRun:
+    """An arm's run of one seed: ``OUT/ARM/seed-S``, its output in ``OUT/logs/ARM-seed-S.log``."""
+    arm = Path(config).stem
+    return TrainingRun(config, out / arm / f"seed-{seed}", (*overrides, f"seed={seed}"), f"{arm}, seed {seed}",
+                       out / "logs" / f"{arm}-seed-{seed}.log")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,7 +70,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="an override for every run of every arm")
     parser.add_argument("--page", type=Path, help="also write the tables to this Markdown file")
+    parser.add_argument("--jobs", type=count(1), help="runs trained side by side (default: 1; with --address: "
+                        "as many as the cluster's CPUs hold)")
+    parser.add_argument("--address", help="a Ray cluster to train the runs on, as Tune trials (default: on this machine)")
+    parser.add_argument("--cpus-per-run", type=float, default=2.0, help="CPUs Ray reserves per run (default 2)")
     args = parser.parse_args(argv)
+    if args.cpus_per_run <= 0:
+        parser.error("--cpus-per-run must be positive")
     chosen = sorted(set(args.seeds) & set(args.tuning_seeds))
     if chosen:
         print(f"error: --seeds {chosen} also chose the settings (--tuning-seeds); report other seeds", file=sys.stderr)
@@ -68,22 +90,29 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    if args.address:
+        try:  # before anything is written: one line, not a hang, where no cluster answers
+            args.address = check_cluster(args.address, nullcontext)
+        except ClusterError as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
     torch.set_num_threads(1)  # the test games are played in this process, one pair at a time
     started = time.monotonic()
+    runs = {(config, seed): study_run(args.out, config, seed, args.overrides) for config in args.config for seed in args.seeds}
+    try:
+        train_runs(list(runs.values()), args.out, args.jobs, args.cpus_per_run, args.address)
+    except RunDirError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except RunFailed as err:
+        print(f"error: {err}; run again to resume", file=sys.stderr)
+        return 1
     sections = []
     for config in args.config:
         arm = Path(config).stem
         per_seed, speeds = {}, []
         for seed in args.seeds:
-            run_dir = args.out / arm / f"seed-{seed}"
-            try:
-                train_run(config, run_dir, [*args.overrides, f"seed={seed}"], f"{arm}, seed {seed}")
-            except RunDirError as err:
-                print(f"error: {err}", file=sys.stderr)
-                return 2
-            except subprocess.CalledProcessError:
-                print(f"error: training {run_dir} failed (its output says why); run again to resume", file=sys.stderr)
-                return 1
+            run_dir = runs[config, seed].run_dir
             print(f"measuring {run_dir} on {args.episodes} test games per pair", flush=True)
             per_seed[seed] = measure_on_test_games(run_dir, args.episodes)
             speeds.append(f"- seed {seed}: {speed(run_dir)}")

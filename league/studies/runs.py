@@ -1,5 +1,6 @@
-"""Training runs of a study to their end, restartable: a finished run is reused, an unfinished one resumed
-from its last checkpoint, a new one started (each as ``python -m league.run`` in its own process)."""
+"""One training run of a study to its end, restartable: a finished run is reused, an unfinished one resumed
+from its last checkpoint, a new one started (as ``python -m league.run`` in its own process, with its own
+Ray instance). ``league.studies.trials`` trains a study's runs so, each as a Ray Tune trial."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import Callable
 
 from league.config import RUN_CONFIG_FILE, added_at_its_default, changed_keys, load_config
 from league.state.run_dir import EVALUATION_FILE, RunDirError, lock_run, read_config
@@ -24,13 +26,6 @@ def resumable(run_dir: Path) -> bool:
     )
 
 
-def say(line: str) -> None:
-    """One line in one write: ``--jobs`` trains from several threads, and ``print`` writes
-    the text and its newline apart (two runs' lines ran together)."""
-    sys.stdout.write(line + "\n")
-    sys.stdout.flush()
-
-
 def check_same_config(config: str, run_dir: Path, overrides) -> None:
     """Refuse to reuse or resume a run made from another config than ``config`` with ``overrides``
     (a study that spans sessions must not mix runs of an edited config with new ones)."""
@@ -43,10 +38,12 @@ def check_same_config(config: str, run_dir: Path, overrides) -> None:
                           "with these overrides): move it away, or give the study another --out")
 
 
-def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | None = None) -> None:
+def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | None, say: Callable[[str], None]) -> None:
     """Train a ``league.run`` to the end: skip it when finished, resume it when it has a
-    checkpoint, else start it from ``config`` with ``overrides`` (``--set`` items); a run made
-    from another config is refused (``RunDirError``)."""
+    checkpoint, else start it from ``config`` with ``overrides`` (``--set`` items), its output
+    appended to ``log`` (``None``: this process's); ``say`` hears which of the three it does.
+    A run made from another config is refused (``RunDirError``), a failed ``league.run``
+    raises ``CalledProcessError``."""
     check_same_config(config, run_dir, overrides)
     if finished(run_dir):
         say(f"reusing {run_dir} (finished)")
@@ -69,28 +66,3 @@ def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | Non
         if out:
             out.close()
 
-
-def _train_here(config: str, run_dir: str, overrides, label: str, log: str | None) -> str:
-    """One run, trained on whichever node Ray placed this task; the node's id."""
-    import ray
-
-    train_run(config, Path(run_dir), overrides, label, Path(log) if log else None)
-    return ray.get_runtime_context().get_node_id()
-
-
-def train_runs_on_cluster(address: str, runs: list[tuple], cpus_per_run: float) -> list[str]:
-    """Train every ``(config, run_dir, overrides, label, log)`` as a Ray task of the cluster at
-    ``address`` (``ray.init(address=...)``), ``cpus_per_run`` CPUs each, so Ray spreads the runs
-    over its nodes; each run is still its own ``league.run`` process with its own private Ray
-    instance on its node. Run directories must be on storage every node reads and writes (a
-    shared filesystem). Returns the node id each run trained on, in order."""
-    import ray
-
-    ray.init(address=address, logging_level="ERROR")
-    try:
-        task = ray.remote(num_cpus=cpus_per_run)(_train_here)
-        refs = [task.remote(config, str(Path(d).resolve()), tuple(o), label, str(Path(log).resolve()) if log else None)
-                for config, d, o, label, log in runs]
-        return ray.get(refs)
-    finally:
-        ray.shutdown()

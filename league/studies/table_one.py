@@ -13,7 +13,7 @@ from league.analysis.statistics import SEED_INTERVAL, mean_interval
 from league.evaluation.results import test_game_stats
 from league.reports.data import PAPER_TABLE_1
 from league.state.run_dir import open_run
-from league.studies.runs import train_run
+from league.studies.trials import TrainingRun
 
 
 def attacker_win_rate(run_dir: Path, method: int, episodes: int) -> tuple[float, int]:
@@ -63,15 +63,10 @@ def phases_override(budget: Budget, team: bool) -> str:
     return f"league.phases=[{', '.join(phases)}]"
 
 
-def task(job: Job, log: Path | None) -> tuple:
-    """``job`` as ``train_run``'s arguments: config, run directory, overrides, label, log."""
+def training_run(job: Job, log: Path) -> TrainingRun:
+    """``job`` as a study's run (``league.studies.trials``), its output in ``log``."""
     label = f"{job.variant}, {job.budget.describe()}, method {job.method}, seed {job.seed}"
-    return f"attacker_method{job.method}_paper", job.run_dir, job.overrides, label, log
-
-
-def train(job: Job, log: Path | None) -> None:
-    """Train ``job`` to the end (``train_run``)."""
-    train_run(*task(job, log))
+    return TrainingRun(f"attacker_method{job.method}_paper", job.run_dir, job.overrides, label, log)
 
 
 def own_method_returns(run_dir: Path, method: int) -> tuple[float, float, str] | None:

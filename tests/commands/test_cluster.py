@@ -18,6 +18,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 from local_cluster import LocalCluster, free_port  # noqa: E402
 
@@ -156,9 +158,10 @@ def test_an_address_where_nothing_listens_fails_at_once_in_one_line(tmp_path):
     assert time.monotonic() - started < 120  # the imports take most of it; Ray's own client retried for minutes
 
 
-def test_reproduce_on_an_address_where_nothing_listens_fails_at_once_in_one_line(tmp_path):
+@pytest.mark.parametrize("command", [["league.reproduce"], ["league.study", "--config", "smoke", "--seeds", "0", "1"]])
+def test_a_study_on_an_address_where_nothing_listens_fails_at_once_in_one_line(tmp_path, command):
     address = f"127.0.0.1:{free_port()}"
-    done = subprocess.run([sys.executable, "-m", "league.reproduce", "--address", address, "--out", str(tmp_path / "out")],
+    done = subprocess.run([sys.executable, "-m", *command, "--address", address, "--out", str(tmp_path / "out")],
                           env={k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}, capture_output=True, text=True,
                           timeout=120)
     assert done.returncode == 2, done.stderr[-3000:]
