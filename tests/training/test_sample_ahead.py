@@ -120,3 +120,4 @@ def test_a_phase_end_drops_the_batch_sampled_ahead(algo_and_run):
     after = bridge.learner_weights(algo, ATTACKER.name)
     assert all(np.array_equal(before[key], after[key]) for key in before), "a batch of the old phase was learned"
     assert bridge.batch_sampled_ahead(algo) is not None  # the new phase's first batch waits
+
