@@ -152,6 +152,10 @@ class Resources(Strict):
     torch_threads: int | None = Field(None, ge=1)
     """Torch threads in every process that runs torch (driver, env runners, evaluation workers); ``None``: the CPUs
     given to that process, at least 1."""
+    sample_ahead: bool = False
+    """The env runners sample each iteration's batch while the driver's learner updates on the last one, by the policy
+    one update old (as APPO; ``league.rllib.algorithm.LeaguePPO.step_ahead``). Needs ``resources.num_env_runners`` >= 1
+    and ``resources.sampler: fast``."""
 
     def threads_for(self, cpus: float) -> int:
         """Torch threads of a process that was given ``cpus`` CPUs."""
@@ -347,6 +351,11 @@ class RunConfig(Strict):
         for key in ("targeter_shaping", "defender_shaping", "attacker_win_reward", "bf16"):
             if getattr(self.ppo, key) and self.resources.sampler != "fast":
                 raise ValueError(f"ppo.{key} needs resources.sampler: fast (RLlib's learner connectors would not apply it)")
+        if self.resources.sample_ahead and (self.resources.num_env_runners < 1 or self.resources.sampler != "fast"):
+            raise ValueError(
+                "resources.sample_ahead needs resources.num_env_runners >= 1 (remote runners sample while the driver "
+                "learns) and resources.sampler: fast"
+            )
         if not self.league.frozen_players_explore and self.resources.sampler == "standard":
             raise ValueError(
                 "league.frozen_players_explore: false needs resources.sampler: fast or batched "

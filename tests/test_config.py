@@ -43,6 +43,8 @@ def write(tmp_path, text):
         ("name: x\nppo: {team_prior: straight+pure_pursuit}\ngame: {action_mode: absolute}\n", "team_prior"),
         ("name: x\nppo: {attacker_heading_cosines: true}\ngame: {observation: paper}\n", "attacker_heading_cosines"),
         ("name: x\nppo: {lr_schedule: [[0, 0.001], [0, 0.0001]]}\n", "lr_schedule"),
+        ("name: x\nresources: {sample_ahead: true}\n", "resources.sample_ahead needs resources.num_env_runners >= 1"),
+        ("name: x\nresources: {sample_ahead: true, num_env_runners: 1, sampler: batched}\n", "resources.sample_ahead"),
     ],
 )
 def test_invalid_config_names_the_key(tmp_path, text, key):

@@ -1,4 +1,28 @@
-"""``LeaguePPO``: RLlib's PPO with its training step fed by the fast sampler's arrays."""
+"""``LeaguePPO``: RLlib's PPO with its training step fed by the fast sampler's arrays.
+
+Sampling ahead (``resources.sample_ahead``, ``LeaguePPO.step_ahead``): the remote env runners
+sample iteration k's batch while the driver's Learner updates on iteration k - 1's, so on two
+cores one samples while the other learns (as APPO, with the lag fixed at one update). What the
+lag means for the league:
+
+* The league decides as before, once per iteration: iteration k's match plan, seeds and
+  trainable set are the ones batch k is played under, and iteration k's ``train()`` result
+  (outcomes, env steps, returns) is of batch k's games: the phase's counts, PFSP and the payoff
+  see every game in the iteration it was played. Only the Learner runs one batch behind: the
+  policy whose games iteration k counts is the learner after k - 2 updates, and a learning-curve
+  point or a snapshot is of the learner that has not yet learned the last batch.
+* A phase's end drops the batch sampled ahead (``bridge.restart_games``, with the games in
+  flight): its games count for the phase that played them, but no learner learns from them,
+  the old phase's learner (its snapshot is the learner as it is) nor the new phase's. A phase
+  therefore learns from one batch fewer than it samples, and its first iteration only samples.
+* A checkpoint keeps the batch sampled ahead (``league.training.checkpoints``), so that a
+  resumed run learns from it in its next iteration as the run never stopped does: two runs of
+  one seed are one run, and one killed and resumed has the same games, weights and evaluations
+  (``tests/training/test_sample_ahead.py``; the mean episode returns that RLlib smooths over
+  remote runners' episodes are not restored, with or without sampling ahead).
+* A lost remote runner's part of a batch is dropped, as without sampling ahead; the others
+  sample the whole batch from the next iteration on (``FaultTolerantPPO``).
+"""
 
 from __future__ import annotations
 
@@ -80,29 +104,83 @@ class LeaguePPO(FaultTolerantPPO):
     The same steps as ``PPO.training_step`` (sample, update the learner, sync the weights),
     with ``BatchedEnvRunner.sample_training_data`` in place of episodes and the learner
     connector pipeline: the batch reaches the Learner with its advantages and value targets.
+
+    With ``resources.sample_ahead`` (``SAMPLE_AHEAD``) the remote runners sample this
+    iteration's batch while the Learner updates on the last iteration's (``step_ahead``).
     """
 
+    sampled_ahead: dict[str, Any] | None = None  # sample-ahead: the batch sampled last iteration, not yet learned
+    trained_modules: set[str] = set()  # the modules of the last update (whose weights the runners need)
+
     def training_step(self) -> None:
-        group, config = self.env_runner_group, self.config
+        if self.config.learner_config_dict.get(SAMPLE_AHEAD):
+            self.step_ahead()
+            return
         with self.metrics.log_time((TIMERS, ENV_RUNNER_SAMPLING_TIMER)):
-            if group.num_remote_env_runners() == 0:
-                sampled = [(self.env_runner.sample_training_data(config.total_train_batch_size), self.env_runner.get_metrics())]
-            else:
-                steps = math.ceil(config.total_train_batch_size / max(1, group.num_healthy_remote_env_runners()))
-                sampled = group.foreach_env_runner(
-                    lambda runner: (runner.worker_index, runner.sample_training_data(steps), runner.get_metrics()),
-                    local_env_runner=False,
-                    timeout_seconds=config.sample_timeout_s,
-                )
-                # In worker order, whichever answered first: the batch's row order is the Learner's.
-                sampled = [(data, metrics) for _, data, metrics in sorted(sampled, key=lambda r: r[0])]
+            sampled = self.sample()
             if not sampled:
                 return
             self.metrics.aggregate([metrics for _, metrics in sampled], key=ENV_RUNNER_RESULTS)
-        env_steps = sum(int(metrics.get(NUM_ENV_STEPS_SAMPLED, 0)) for _, metrics in sampled)
-        batch = training_batch([data for data, _ in sampled], env_steps)
-        if batch is None:  # no trained module played
-            return
+        batch = self.batch_of(sampled)
+        if batch is not None:  # (None: no trained module played)
+            self.learn(batch)
+            self.sync_weights()
+
+    def step_ahead(self) -> None:
+        """One iteration with sampling overlapped with learning, the lag fixed at one update.
+
+        Iteration k: the remote runners start sampling batch k with the weights they hold (the
+        Learner's after k - 2 updates); meanwhile the Learner updates on batch k - 1 (sampled
+        in iteration k - 1 by the weights after k - 3 updates: one update old); once every
+        runner has answered, the new weights go to the runners and batch k waits for iteration
+        k + 1. The runners' weights change only between their samples, so the lag does not
+        depend on which finishes first. An iteration without a batch waiting (the first, a
+        phase's first: ``drop_sampled_ahead``) samples only.
+        """
+        group, config = self.env_runner_group, self.config
+        steps = math.ceil(config.total_train_batch_size / max(1, group.num_healthy_remote_env_runners()))
+        tag = f"{SAMPLE_AHEAD}_{self.iteration}"  # a runner's late answer is never taken for a later iteration's
+        launched = group.foreach_env_runner_async(
+            lambda runner: (runner.worker_index, runner.sample_training_data(steps), runner.get_metrics()), tag=tag
+        )
+        waiting, self.sampled_ahead = self.sampled_ahead, None
+        if waiting is not None:
+            self.learn(training_batch(waiting["parts"], waiting["env_steps"]))
+        with self.metrics.log_time((TIMERS, ENV_RUNNER_SAMPLING_TIMER)):
+            answers = group.fetch_ready_async_reqs(tags=tag, timeout_seconds=config.sample_timeout_s) if launched else []
+            sampled = [(data, metrics) for _, (_, data, metrics) in sorted(answers, key=lambda r: r[1][0])]
+            if sampled:
+                self.metrics.aggregate([metrics for _, metrics in sampled], key=ENV_RUNNER_RESULTS)
+        if waiting is not None:
+            self.sync_weights()
+        if any(data for data, _ in sampled):  # a batch of a trained module
+            self.sampled_ahead = {"parts": [data for data, _ in sampled], "env_steps": env_steps_of(sampled)}
+
+    def drop_sampled_ahead(self) -> None:
+        """Drop the batch sampled ahead (a phase's end: the next phase learns from its own games only)."""
+        self.sampled_ahead = None
+
+    def sample(self) -> list[tuple[dict[str, dict[str, np.ndarray]], dict[str, Any]]]:
+        """Every runner's training data and metrics, in worker order (the order of the Learner's rows)."""
+        group, config = self.env_runner_group, self.config
+        if group.num_remote_env_runners() == 0:
+            return [(self.env_runner.sample_training_data(config.total_train_batch_size), self.env_runner.get_metrics())]
+        steps = math.ceil(config.total_train_batch_size / max(1, group.num_healthy_remote_env_runners()))
+        sampled = group.foreach_env_runner(
+            lambda runner: (runner.worker_index, runner.sample_training_data(steps), runner.get_metrics()),
+            local_env_runner=False,
+            timeout_seconds=config.sample_timeout_s,
+        )
+        # In worker order, whichever answered first: the batch's row order is the Learner's.
+        return [(data, metrics) for _, data, metrics in sorted(sampled, key=lambda r: r[0])]
+
+    @staticmethod
+    def batch_of(sampled: list[tuple[dict[str, dict[str, np.ndarray]], dict[str, Any]]]) -> MultiAgentBatch | None:
+        return training_batch([data for data, _ in sampled], env_steps_of(sampled))
+
+    def learn(self, batch: MultiAgentBatch) -> None:
+        """One update of the Learner on ``batch``."""
+        config = self.config
         with self.metrics.log_time((TIMERS, LEARNER_UPDATE_TIMER)):
             learner_results = self.learner_group.update(
                 batch=batch,
@@ -117,15 +195,23 @@ class LeaguePPO(FaultTolerantPPO):
                 shuffle_batch_per_epoch=config.shuffle_batch_per_epoch,
             )
             self.metrics.aggregate(learner_results, key=LEARNER_RESULTS)
+        self.trained_modules = set(learner_results[0]) - {ALL_MODULES}
+
+    def sync_weights(self) -> None:
+        """The trained modules' new weights to the runners."""
         with self.metrics.log_time((TIMERS, SYNCH_WORKER_WEIGHTS_TIMER)):
-            group.sync_weights(
-                from_worker_or_learner_group=self.learner_group,
-                policies=set(learner_results[0]) - {ALL_MODULES},
-                inference_only=True,
+            self.env_runner_group.sync_weights(
+                from_worker_or_learner_group=self.learner_group, policies=self.trained_modules, inference_only=True,
             )
 
 
+def env_steps_of(sampled: list[tuple[Any, dict[str, Any]]]) -> int:
+    """Env steps the runners played for ``sampled`` (their metrics')."""
+    return sum(int(metrics.get(NUM_ENV_STEPS_SAMPLED, 0)) for _, metrics in sampled)
+
+
 MINIBATCH_SIZES = "league_minibatch_sizes"  # `learner_config_dict` key: learner module id -> rows per minibatch
+SAMPLE_AHEAD = "league_sample_ahead"  # `learner_config_dict` key: `resources.sample_ahead`
 
 
 def minibatch_size(config: Any, batch: MultiAgentBatch) -> int:

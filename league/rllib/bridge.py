@@ -30,7 +30,7 @@ from envs.single import action_space
 from league.config import RunConfig
 from league.core.match_plan import MatchPlan
 from league.core.players import NewPlayer, Player
-from league.rllib.algorithm import MINIBATCH_SIZES, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
+from league.rllib.algorithm import MINIBATCH_SIZES, SAMPLE_AHEAD, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
 from league.rllib.env_runner import BatchedEnvRunner, SeededEnvRunner, seed_iteration
 from league.rllib import compat
@@ -197,7 +197,8 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
         .learners(
             num_learners=0,
             learner_config_dict={
-                MINIBATCH_SIZES: {p.name: ppo.minibatch(p.side) for p in players if p.trains}
+                MINIBATCH_SIZES: {p.name: ppo.minibatch(p.side) for p in players if p.trains},
+                SAMPLE_AHEAD: res.sample_ahead,
             },
         )
         .multi_agent(
@@ -262,8 +263,21 @@ def games_in_flight(algo: Algorithm) -> dict[int, bytes]:
 
 
 def restart_games(algo: Algorithm) -> None:
-    """Every fast or batched env runner drops its games in flight (``BatchedEnvRunner.restart_games``)."""
+    """Every fast or batched env runner drops its games in flight (``BatchedEnvRunner.restart_games``),
+    and the driver the batch sampled ahead (``resources.sample_ahead``): a phase learns from its own games only."""
     _on_batched_runners(algo, lambda runner: runner.restart_games())
+    if isinstance(algo, LeaguePPO):
+        algo.drop_sampled_ahead()
+
+
+def batch_sampled_ahead(algo: Algorithm) -> dict[str, Any] | None:
+    """The batch sampled ahead and not yet learned (``resources.sample_ahead``), which a checkpoint keeps; None: none."""
+    return algo.sampled_ahead if isinstance(algo, LeaguePPO) else None
+
+
+def restore_batch_sampled_ahead(algo: Algorithm, batch: dict[str, Any]) -> None:
+    """Give the algorithm back its batch sampled ahead (``batch_sampled_ahead``): the next iteration learns from it."""
+    algo.sampled_ahead = batch
 
 
 def _on_batched_runners(algo: Algorithm, call: Any) -> None:

@@ -1,7 +1,7 @@
 """The files a training run writes besides its database: frozen players' modules and checkpoints.
 
 A snapshot's module goes to ``players/NAME`` (``freeze``); a checkpoint directory holds the
-algorithm and the env runners' games in flight (``write_checkpoint``), written whole or not
+algorithm, the env runners' games in flight and the batch sampled ahead (``write_checkpoint``), written whole or not
 at all (``league.state.run_dir.write_checkpoint``); ``restore`` reads one back.
 """
 
@@ -18,6 +18,7 @@ from league.rllib import bridge
 from league.state.run_dir import fresh_directory, write_checkpoint
 
 GAMES_FILE = "games_in_flight.pkl"  # in a checkpoint directory: the env runners' games in flight
+AHEAD_FILE = "sampled_ahead.pkl"  # in a checkpoint directory: the batch sampled ahead (`resources.sample_ahead`)
 
 
 def save_player(algo: Any, run_dir: Path, module_id: str, name: str) -> str:
@@ -39,6 +40,9 @@ def checkpoint(algo: Any, run_dir: Path, iteration: int) -> Path:
     def save(directory: Path) -> None:
         algo.save_to_path(str(directory))
         (directory / GAMES_FILE).write_bytes(pickle.dumps(bridge.games_in_flight(algo)))
+        ahead = bridge.batch_sampled_ahead(algo)
+        if ahead is not None:
+            (directory / AHEAD_FILE).write_bytes(pickle.dumps(ahead))
 
     return write_checkpoint(run_dir, iteration, save)
 
@@ -49,4 +53,7 @@ def restore(directory: Path) -> Any:
     games = directory / GAMES_FILE
     if games.exists():  # (a checkpoint written before games in flight were kept has none: they start anew)
         bridge.restore_games(algo, pickle.loads(games.read_bytes()))
+    ahead = directory / AHEAD_FILE
+    if ahead.exists():
+        bridge.restore_batch_sampled_ahead(algo, pickle.loads(ahead.read_bytes()))
     return algo
