@@ -48,12 +48,17 @@ def test_the_rayjob_starts_or_resumes_and_its_volume_claim_is_defined():
 
 def test_the_image_installs_its_dependencies_before_the_source():
     lines = [line for line in (DOCKER / "Dockerfile").read_text().splitlines() if not line.startswith("#")]
-    base = next(line for line in lines if line.startswith("FROM "))
-    assert re.fullmatch(r"FROM python:\d+\.\d+\.\d+-slim-\w+(@sha256:[0-9a-f]{64})?", base), base  # a full tag
-    dependencies = next(i for i, line in enumerate(lines) if "-c /tmp/deps/constraints.txt" in line)
-    source = next(i for i, line in enumerate(lines) if "target=/tmp/src" in line or re.match(r"COPY .*\b(league|envs)\b", line))
-    copied_before = [line for line in lines[:dependencies] if line.startswith("COPY ")]
-    assert copied_before == ["COPY pyproject.toml constraints.txt /tmp/deps/"] and dependencies < source
+    stages = [i for i, line in enumerate(lines) if line.startswith("FROM ")]
+    # The base is an ARG (a local stand-in can be passed) whose default is the official image's full tag.
+    assert lines[stages[0]] == "FROM ${BASE} AS deps" and lines[stages[0] - 1].startswith("ARG BASE="), lines[: stages[0] + 1]
+    default = lines[stages[0] - 1].removeprefix("ARG BASE=")
+    assert re.fullmatch(r"python:\d+\.\d+\.\d+-slim-\w+(@sha256:[0-9a-f]{64})?", default), default  # a full tag
+    deps, final = lines[stages[0] : stages[1]], lines[stages[-1] :]
+    assert any("-c /tmp/deps/constraints.txt" in line for line in deps)
+    assert [line for line in deps if line.startswith("COPY ")] == ["COPY pyproject.toml constraints.txt /tmp/deps/"]
+    # On the dependencies' layers, the final stage adds the package only as the wheel built in its own stage.
+    assert final[0] == "FROM deps" and not any("--mount" in line for line in final)
+    assert [line for line in final if line.startswith("COPY ")] == ["COPY --from=wheel /tmp/wheel/ /tmp/wheel/"]
 
 
 def test_the_build_context_is_only_what_the_package_is_built_from():
