@@ -134,7 +134,8 @@ class StudyProgress(tune.Callback):
 
     def setup(self, **info: Any) -> None:
         self.started = time.monotonic()
-        self.done = {str(r.run_dir) for r in self.runs if finished(r.run_dir)}
+        # absolute, as the trials' parameters name them (`param`): a relative --out counted each reused run twice
+        self.done = {str(r.run_dir.resolve()) for r in self.runs if finished(r.run_dir)}
         self.reused = len(self.done)
         self.trained: list[float] = []
         self.show()

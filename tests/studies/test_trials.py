@@ -7,14 +7,18 @@ import shutil
 import signal
 import threading
 import time
+from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
-from league.state.run_dir import lock_holder
+from league.state.run_dir import EVALUATION_FILE, lock_holder
 from league.state.store import LeagueStore
 from league.study import main as study_main
 from league.study import study_run
-from league.studies.trials import RunFailed, TUNE_DIR, progress_line, train_runs
+from league.studies.trials import (
+    DONE, RunFailed, StudyProgress, TrainingRun, TUNE_DIR, param, progress_line, train_runs,
+)
 
 # Checkpoints every iteration (a killed run resumes from its first); no learning curves (quicker).
 OVERRIDES = ["checkpoint_every=1", "evaluation.curve_every_env_steps=0"]
@@ -103,3 +107,16 @@ def test_runs_train_as_trials_a_killed_one_resumes_and_finished_ones_are_reused(
     assert "study: 2 of 2 runs done (2 reused)" in said and "training tiny" not in said
     assert [(d / "evaluation.md").stat().st_mtime for d in (first, second)] == finals
     assert committed_iterations(first) == committed_iterations(second) == [1, 2, 3, 4]
+
+
+def test_a_run_finished_before_the_study_counts_once_whatever_the_form_of_its_path(tmp_path, monkeypatch, capsys):
+    """A study given a relative ``--out`` names its runs relatively; its trials name them absolutely."""
+    monkeypatch.chdir(tmp_path)
+    runs = [TrainingRun("smoke", Path(f"out/seed-{s}"), (), f"seed {s}", Path(f"out/seed-{s}.log")) for s in (1, 2)]
+    (tmp_path / "out" / "seed-1").mkdir(parents=True)
+    (tmp_path / "out" / "seed-1" / EVALUATION_FILE).write_text("done")
+    progress = StudyProgress(runs, parallel=1, on_cluster=False)
+    progress.setup()
+    reused = SimpleNamespace(config={"run": param(runs[0])}, last_result={DONE: True, "reused": True, "seconds": 0.0})
+    progress.on_trial_complete(0, [], reused)
+    assert capsys.readouterr().out.splitlines()[-1].startswith("study: 1 of 2 runs done (1 reused)")
