@@ -48,21 +48,60 @@ def train_run(config: str, run_dir: Path, overrides, label: str, log: Path | Non
     if finished(run_dir):
         say(f"reusing {run_dir} (finished)")
         return
+    if resumable(run_dir):
+        say(f"resuming {run_dir}")
+        run_saying_progress([sys.executable, "-m", "league.run", "--resume", str(run_dir)], log, label, say)
+        return
+    if run_dir.exists():  # killed before its first checkpoint: nothing to resume
+        lock_run(run_dir).release()  # refuses (RunDirError) while another process trains it
+        shutil.rmtree(run_dir)
+    command = [sys.executable, "-m", "league.run", "--config", config, "--run-dir", str(run_dir)]
+    for item in overrides:
+        command += ["--set", item]
+    say(f"training {label} -> {run_dir}")
+    run_saying_progress(command, log, label, say)
+
+
+PROGRESS_EVERY_S = 60.0  # how often a run whose output goes to a log passes on its newest training line
+
+
+def run_saying_progress(command: list[str], log: Path | None, label: str, say: Callable[[str], None]) -> None:
+    """Run ``command`` to its end, its output appended to ``log`` (``None``: this process's);
+    with a log, every ``PROGRESS_EVERY_S`` its newest line that tells the share of the budget
+    done and the time left goes to ``say``, prefixed by ``label`` (a study's only sign of life
+    during a long run). A failure raises ``CalledProcessError``; an interruption here ends the
+    run's process too, as ``subprocess.run`` does."""
     out = open(log, "a") if log else None
     try:
-        if resumable(run_dir):
-            say(f"resuming {run_dir}")
-            subprocess.run([sys.executable, "-m", "league.run", "--resume", str(run_dir)], stdout=out, stderr=out, check=True)
-            return
-        if run_dir.exists():  # killed before its first checkpoint: nothing to resume
-            lock_run(run_dir).release()  # refuses (RunDirError) while another process trains it
-            shutil.rmtree(run_dir)
-        command = [sys.executable, "-m", "league.run", "--config", config, "--run-dir", str(run_dir)]
-        for item in overrides:
-            command += ["--set", item]
-        say(f"training {label} -> {run_dir}")
-        subprocess.run(command, stdout=out, stderr=out, check=True)
+        with subprocess.Popen(command, stdout=out, stderr=out) as proc:
+            try:
+                while not wait_for(proc, PROGRESS_EVERY_S if log else None):
+                    line = newest_progress_line(log) if log else None
+                    if line:
+                        say(f"{label}: {line}")
+            except BaseException:
+                proc.kill()
+                raise
     finally:
         if out:
             out.close()
+    if proc.returncode:
+        raise subprocess.CalledProcessError(proc.returncode, command)
+
+
+def wait_for(proc: subprocess.Popen, seconds: float | None) -> bool:
+    """Whether ``proc`` ended within ``seconds`` (``None``: wait for it)."""
+    try:
+        proc.wait(timeout=seconds)
+    except subprocess.TimeoutExpired:
+        return False
+    return True
+
+
+def newest_progress_line(log: Path) -> str | None:
+    """The last training line in the log's last 64 KiB that says the share of the budget done (``| 35% of``)."""
+    with open(log, "rb") as f:
+        f.seek(max(0, f.seek(0, 2) - 65536))
+        lines = f.read().decode(errors="replace").splitlines()
+    return next((line.strip() for line in reversed(lines) if "% of " in line and " left" in line), None)
 

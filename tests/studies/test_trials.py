@@ -5,6 +5,8 @@ and the study's progress line."""
 import os
 import shutil
 import signal
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -14,6 +16,7 @@ import pytest
 
 from league.state.run_dir import EVALUATION_FILE, lock_holder
 from league.state.store import LeagueStore
+from league.studies import runs
 from league.study import main as study_main
 from league.study import study_run
 from league.studies.trials import (
@@ -120,3 +123,16 @@ def test_a_run_finished_before_the_study_counts_once_whatever_the_form_of_its_pa
     reused = SimpleNamespace(config={"run": param(runs[0])}, last_result={DONE: True, "reused": True, "seconds": 0.0})
     progress.on_trial_complete(0, [], reused)
     assert capsys.readouterr().out.splitlines()[-1].startswith("study: 1 of 2 runs done (1 reused)")
+
+
+def test_a_run_writing_to_its_log_says_its_newest_progress_line_while_it_trains(tmp_path, monkeypatch):
+    """A study's runs write to their logs; the study passes on each run's share of the budget and time left."""
+    monkeypatch.setattr(runs, "PROGRESS_EVERY_S", 0.2)
+    log, heard = tmp_path / "run.log", []
+    script = ("import sys, time\n"
+              "print('12:00:00 phase 1/2 attacker | iter 1 | 8192 env steps in all | 10% of 80,000, 9 s left', flush=True)\n"
+              "time.sleep(1.0)\n")
+    runs.run_saying_progress([sys.executable, "-c", script], log, "smoke, seed 1", heard.append)
+    assert heard and heard[-1] == "smoke, seed 1: 12:00:00 phase 1/2 attacker | iter 1 | 8192 env steps in all | 10% of 80,000, 9 s left"
+    with pytest.raises(subprocess.CalledProcessError):
+        runs.run_saying_progress([sys.executable, "-c", "raise SystemExit(3)"], log, "x", heard.append)
