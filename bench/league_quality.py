@@ -39,18 +39,17 @@ import argparse
 import json
 import subprocess
 import sys
-from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
 
 from envs.scenarios import evaluation_scenarios
+from league.cli import cluster_or_exit
 from league.analysis.exploitability import exploitability
 from league.evaluation.engine import play_fixed_games, policies_of
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, wilson_interval
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
-from league.cluster import ClusterError, check_cluster
 from league.studies.trials import RunFailed, TrainingRun, train_runs
 from league.state.run_dir import RunDirError, open_run
 
@@ -150,11 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     if (args.jobs is not None and args.jobs < 1) or args.cpus_per_run <= 0:
         parser.error("--jobs must be at least 1 and --cpus-per-run positive")
     if args.address:
-        try:  # before anything is written: one line, not a hang, where no cluster answers
-            args.address = check_cluster(args.address, nullcontext)
-        except ClusterError as err:
-            print(f"error: {err}", file=sys.stderr)
-            return 2
+        args.address = cluster_or_exit(args.address)
     args.out.mkdir(parents=True, exist_ok=True)
     walls_file = args.out / "wall_times.json"
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from contextlib import nullcontext
 from typing import IO
 
 import league
@@ -67,3 +68,15 @@ class PairProgress:
         self.last, elapsed = now, now - self.start
         left = f", about {elapsed / done * (total - done):.0f} s left" if done < total else ""
         print(f"{self.what}: {done} of {total} pairs, {elapsed:.0f} s{left}", file=self.stream, flush=True)
+
+
+def cluster_or_exit(address: str) -> str:
+    """A many-runs command's ``--address``, checked before anything is written: the address of
+    the cluster that answered, or one line and exit 2 where none does (not a hang)."""
+    from league.cluster import ClusterError, check_cluster
+
+    try:
+        return check_cluster(address, nullcontext)
+    except ClusterError as err:
+        print(f"error: {err}", file=sys.stderr)
+        raise SystemExit(2) from None

@@ -38,11 +38,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from contextlib import nullcontext
 from pathlib import Path
 
-from league.cli import command_parser
-from league.cluster import ClusterError, check_cluster
+from league.cli import cluster_or_exit, command_parser
 from league.state.run_dir import RunDirError
 from league.studies.table_one import Budget, Job, phases_override, table, training_run
 from league.studies.trials import RunFailed, train_runs
@@ -79,11 +77,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if args.address:
-        try:  # before anything is written: one line, not a hang, where no cluster answers
-            args.address = check_cluster(args.address, nullcontext)
-        except ClusterError as err:
-            print(f"error: {err}", file=sys.stderr)
-            return 2
+        args.address = cluster_or_exit(args.address)
     budgets = [Budget("episodes", n) for n in args.episodes] + [Budget("env_steps", n) for n in args.env_steps]
     budgets = budgets or [Budget("episodes", 10_000)]
     started = time.perf_counter()

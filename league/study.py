@@ -29,13 +29,11 @@ from __future__ import annotations
 
 import sys
 import time
-from contextlib import nullcontext
 from pathlib import Path
 
 import torch
 
-from league.cli import command_parser, count
-from league.cluster import ClusterError, check_cluster
+from league.cli import cluster_or_exit, command_parser, count
 from league.config import ConfigError, load_config
 from league.state.run_dir import RunDirError, open_run
 from league.studies.beats_scripted import measure_on_test_games, table
@@ -91,11 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     if args.address:
-        try:  # before anything is written: one line, not a hang, where no cluster answers
-            args.address = check_cluster(args.address, nullcontext)
-        except ClusterError as err:
-            print(f"error: {err}", file=sys.stderr)
-            return 2
+        args.address = cluster_or_exit(args.address)
     torch.set_num_threads(1)  # the test games are played in this process, one pair at a time
     started = time.monotonic()
     runs = {(config, seed): study_run(args.out, config, seed, args.overrides) for config in args.config for seed in args.seeds}
