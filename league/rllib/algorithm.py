@@ -138,11 +138,8 @@ class LeaguePPO(FaultTolerantPPO):
         phase's first: ``drop_sampled_ahead``) samples only.
         """
         group, config = self.env_runner_group, self.config
-        steps = math.ceil(config.total_train_batch_size / max(1, group.num_healthy_remote_env_runners()))
         tag = f"{SAMPLE_AHEAD}_{self.iteration}"  # a runner's late answer is never taken for a later iteration's
-        launched = group.foreach_env_runner_async(
-            lambda runner: (runner.worker_index, runner.sample_training_data(steps), runner.get_metrics()), tag=tag
-        )
+        launched = group.foreach_env_runner_async(self.remote_share(), tag=tag)
         waiting, self.sampled_ahead = self.sampled_ahead, None
         if waiting is not None:
             self.learn(training_batch(waiting["parts"], waiting["env_steps"]))
@@ -165,14 +162,14 @@ class LeaguePPO(FaultTolerantPPO):
         group, config = self.env_runner_group, self.config
         if group.num_remote_env_runners() == 0:
             return [(self.env_runner.sample_training_data(config.total_train_batch_size), self.env_runner.get_metrics())]
-        steps = math.ceil(config.total_train_batch_size / max(1, group.num_healthy_remote_env_runners()))
-        sampled = group.foreach_env_runner(
-            lambda runner: (runner.worker_index, runner.sample_training_data(steps), runner.get_metrics()),
-            local_env_runner=False,
-            timeout_seconds=config.sample_timeout_s,
-        )
+        sampled = group.foreach_env_runner(self.remote_share(), local_env_runner=False, timeout_seconds=config.sample_timeout_s)
         # In worker order, whichever answered first: the batch's row order is the Learner's.
         return [(data, metrics) for _, data, metrics in sorted(sampled, key=lambda r: r[0])]
+
+    def remote_share(self) -> Any:
+        """The call that has one remote runner sample its share of the batch: ``(worker index, data, metrics)``."""
+        steps = math.ceil(self.config.total_train_batch_size / max(1, self.env_runner_group.num_healthy_remote_env_runners()))
+        return lambda runner: (runner.worker_index, runner.sample_training_data(steps), runner.get_metrics())
 
     @staticmethod
     def batch_of(sampled: list[tuple[dict[str, dict[str, np.ndarray]], dict[str, Any]]]) -> MultiAgentBatch | None:
