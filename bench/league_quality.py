@@ -44,14 +44,14 @@ from pathlib import Path
 import numpy as np
 
 from envs.scenarios import evaluation_scenarios
-from league.cli import cluster_or_exit, train_runs_or_exit
+from league.cli import cluster_or_exit
 from league.analysis.exploitability import exploitability
 from league.evaluation.engine import play_fixed_games, policies_of
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, wilson_interval
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
-from league.studies.trials import TrainingRun
-from league.state.run_dir import open_run
+from league.studies.trials import RunFailed, TrainingRun, train_runs
+from league.state.run_dir import RunDirError, open_run
 
 ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance", "league-psro")
 PFSP_OF_ARM = {"league-variance": "variance", "league-psro": "nash"}  # the others: squared
@@ -162,7 +162,14 @@ def main(argv: list[str] | None = None) -> int:
         return TrainingRun("selfplay_league", run_dir, tuple(arm_overrides(arm, args, seed)), f"{arm} seed {seed}",
                            args.out / f"{arm}-seed-{seed}.log")
 
-    trained = train_runs_or_exit([training_run(*run) for run in runs], args)
+    try:
+        trained = train_runs([training_run(*run) for run in runs], args.out, args.jobs, args.cpus_per_run, args.address)
+    except RunDirError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except RunFailed as err:
+        print(f"error: {err}; run this command again to resume", file=sys.stderr)
+        return 1
     # read again: other invocations (other arms or seeds, into the same OUT) may have added theirs
     walls_file.write_text(json.dumps({**read_walls(), **{t.run.label: t.seconds for t in trained if not t.reused}}, indent=1))
 

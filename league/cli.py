@@ -80,22 +80,3 @@ def cluster_or_exit(address: str) -> str:
     except ClusterError as err:
         print(f"error: {err}", file=sys.stderr)
         raise SystemExit(2) from None
-
-
-def train_runs_or_exit(runs: list, args: argparse.Namespace) -> list:
-    """A many-runs command's runs trained to their end (``league.studies.trials.train_runs`` with
-    the command's ``--out``, ``--jobs``, ``--cpus-per-run``, ``--address``); one line and exit 2
-    for a run directory of another config or one another process trains, exit 1 for a run that
-    failed (the same command again resumes it)."""
-    from league.state.run_dir import RunDirError
-    from league.studies.trials import RunFailed, train_runs
-
-    try:
-        return train_runs(runs, args.out, args.jobs, args.cpus_per_run, args.address)
-    except RunDirError as err:
-        print(f"error: {err}", file=sys.stderr)
-        raise SystemExit(2) from None
-    except RunFailed as err:
-        print(f"error: {err}; run this command again to resume", file=sys.stderr)
-        raise SystemExit(1) from None
-

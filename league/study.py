@@ -33,11 +33,11 @@ from pathlib import Path
 
 import torch
 
-from league.cli import cluster_or_exit, command_parser, count, train_runs_or_exit
+from league.cli import cluster_or_exit, command_parser, count
 from league.config import ConfigError, load_config
-from league.state.run_dir import open_run
+from league.state.run_dir import RunDirError, open_run
 from league.studies.beats_scripted import measure_on_test_games, table
-from league.studies.trials import TrainingRun
+from league.studies.trials import RunFailed, TrainingRun, train_runs
 
 
 def speed(run_dir: Path) -> str:
@@ -93,7 +93,14 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(1)  # the test games are played in this process, one pair at a time
     started = time.monotonic()
     runs = {(config, seed): study_run(args.out, config, seed, args.overrides) for config in args.config for seed in args.seeds}
-    train_runs_or_exit(list(runs.values()), args)
+    try:
+        train_runs(list(runs.values()), args.out, args.jobs, args.cpus_per_run, args.address)
+    except RunDirError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except RunFailed as err:
+        print(f"error: {err}; run again to resume", file=sys.stderr)
+        return 1
     sections = []
     for config in args.config:
         arm = Path(config).stem
