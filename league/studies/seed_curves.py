@@ -68,9 +68,10 @@ def progress_table(generations: list[tuple[list[GenerationLine], list[str]]], ru
     return "\n".join(lines)
 
 
-def study(run_dirs: list[Path], out: Path) -> tuple[Path, Path]:
+def study(run_dirs: list[Path], out: Path, learners: list[str] | None = None) -> tuple[Path, Path]:
     """Curves of several runs of one config: ``OUT/curves.png`` and ``OUT/curves.md``, and their
-    progress over generations, a row per run, in ``OUT/generations.png``."""
+    progress over generations, a row per run, in ``OUT/generations.png``. ``learners``: only these
+    learners' curves (names as ``attacker-m2``, ``team``); ``None``: every learner's."""
     per_run: list[dict[tuple[str, str], Curve]] = []
     generations = []
     configs = []
@@ -85,6 +86,12 @@ def study(run_dirs: list[Path], out: Path) -> tuple[Path, Path]:
     keys = [k for k in per_run[0] if all(k in curves for curves in per_run)]
     if not keys:
         raise ValueError(f"the runs have no learning curve in common ({', '.join(map(str, run_dirs))})")
+    if learners is not None:
+        unknown = sorted(set(learners) - {learner for learner, _ in keys})
+        if unknown:
+            raise ValueError(f"--learners: no curves of {', '.join(unknown)} in these runs "
+                             f"(they have {', '.join(sorted({learner for learner, _ in keys}))})")
+        keys = [k for k in keys if k[0] in learners]
     terminal = {run.game.terminal_reward for run in configs}
     if len(terminal) > 1:
         raise ValueError(f"the runs use different terminal rewards {sorted(terminal)}: not one config")
