@@ -40,9 +40,10 @@ training, curve or tuning played:
 
 Writes ``OUT/league_quality.md``. Each run is a Ray Tune trial (``league.studies.trials``),
 ``--jobs`` at a time, or on the Ray cluster at ``--address`` (``--cpus-per-run`` CPUs each;
-OUT on storage every node shares). Run again, the same command reuses finished runs (and
-resumes unfinished ones), the recorded test games and the best responses whose results it
-kept (``OUT/ARM/seed-S/exploitability/*.json``, one ``league.exploit --json`` output per call).
+OUT on storage every node shares); the measurements and best responses then run on this
+machine, one at a time. Run again, the same command reuses finished runs (and resumes
+unfinished ones), the recorded test games and the best responses whose results it kept
+(``OUT/ARM/seed-S/exploitability/*.json``, one ``league.exploit --json`` output per call).
 
 Exit codes: 0 done; 2 a bad argument (an arm's config that does not load, a tuning seed among
 the seeds, a run directory of another config); 1 a training run or a best response that failed
@@ -132,10 +133,12 @@ class Finals:
             players = store.players()
         finally:
             store.close()
-        newest = {side: max((p for p in players if p.side == side and p.kind == "snapshot"), key=lambda p: p.version)
-                  for side in SIDES}
-        return cls(run_dir, newest, {side: [p for p in players if p.side == side and p.kind == "scripted"] for side in SIDES},
-                   {side: sum(p.env_steps for p in players if p.side == side and p.kind == "oracle") for side in SIDES})
+        def of_kind(side: str, kind: str) -> list[Player]:
+            return [p for p in players if p.side == side and p.kind == kind]
+
+        return cls(run_dir, {side: max(of_kind(side, "snapshot"), key=lambda p: p.version) for side in SIDES},
+                   {side: of_kind(side, "scripted") for side in SIDES},
+                   {side: sum(p.env_steps for p in of_kind(side, "oracle")) for side in SIDES})
 
 
 def win_cell(wins: int, games: int) -> str:
@@ -189,8 +192,8 @@ class Exploited:
 
 def run_exploit(argv: list[str]) -> dict:
     """``python -m league.exploit ARGV`` (with ``--json``) in its own process: its JSON; its progress goes to stderr."""
-    return json.loads(subprocess.run([sys.executable, "-m", "league.exploit", *argv], stdout=subprocess.PIPE, text=True,
-                                     check=True).stdout)
+    done = subprocess.run([sys.executable, "-m", "league.exploit", *argv], stdout=subprocess.PIPE, text=True, check=True)
+    return json.loads(done.stdout)
 
 
 def exploited(run_dir: Path, name: str, side: str, args) -> Exploited:
@@ -207,7 +210,7 @@ def exploited(run_dir: Path, name: str, side: str, args) -> Exploited:
         kept.parent.mkdir(exist_ok=True)
         partial = kept.with_suffix(".partial")
         partial.write_text(json.dumps(calls, indent=1))
-        partial.replace(kept)  # the list of calls whole or not at all: a kill here trains the last call's seeds again
+        partial.replace(kept)  # whole or not at all: a call killed before this line is trained again, on new seeds
     return Exploited(name, [s for call in calls for s in call["seeds"]][:args.br_seeds], calls[-1]["best_member"])
 
 
@@ -249,6 +252,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cpus-per-run", type=float, default=2.0, help="CPUs Ray reserves per run (default 2)")
     args = parser.parse_args(argv)
     args.team_br_env_steps = args.team_br_env_steps or args.br_env_steps
+    args.seeds = list(dict.fromkeys(args.seeds))  # a seed named twice is one run, counted once over seeds
     if args.phases % 2 or args.cpus_per_run <= 0:
         parser.error("--phases must be even (both sides the same budget) and --cpus-per-run positive")
     chosen = tuning_seeds_error(args.seeds, args.tuning_seeds)
@@ -334,7 +338,8 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str
             print(lines[-1], flush=True)
         values = {target: {arm: {seed: found[arm, seed, side, target].mean for seed in args.seeds} for arm in args.arms}
                   for target in TARGETS}
-        lines += ["", f"Over training seeds ({SEED_INTERVAL}; minus `{REFERENCE_ARM}`: mean difference, paired t-test):", "",
+        lines += ["", f"Over training seeds ({SEED_INTERVAL}; minus `{REFERENCE_ARM}`: the mean of the per-seed "
+                  "differences, above 0 more exploitable, and the paired t-test's p):", "",
                   "| arm | final: exploitability | minus league | Nash mixture: exploitability | minus league |",
                   "| --- " * 5 + "|"]
         lines += [f"| {arm} | " + " | ".join(c for target in TARGETS for c in over_seeds(values[target], arm, args.seeds, args.arms))
