@@ -1,122 +1,144 @@
-"""Is the league any good? The league-quality study: ``python bench/league_quality.py``.
+"""Does the league make less exploitable players than simpler training? ``python bench/league_quality.py``.
 
-Trains one run per arm from ``configs/selfplay_league.yaml`` with the same game, PPO
-settings and env-step budget per side, then compares the final players of each side:
+Trains one run per arm and training seed from ``--config`` (default ``selfplay_league``), the
+arms differing only in whom each side's learner trains against:
 
-| arm                | the team learns against                                    |
-| ------------------ | ---------------------------------------------------------- |
-| ``protocol``       | the frozen attacker of phase 1 (which learned against the scripted teams), one phase |
-| ``naive``          | the other side's newest snapshot only, phases in turn      |
-| ``league``         | PFSP over the other side's scripted players and snapshots  |
-| ``league-exploiters`` | as ``league``, with a main exploiter on each side (``league.exploiters``) |
-| ``league-variance`` | as ``league``, PFSP weighting ``variance``, x(1 - x), instead of ``squared`` |
-| ``league-psro``    | as ``league``, opponents by PSRO's rule (``pfsp: nash``): the Nash mixture of the frozen players' meta-game |
+| arm | the learner of each side trains against |
+| --- | --- |
+| ``protocol`` | the paper's protocol: the attacker the scripted teams for half the budget, then the team that attacker's final snapshot |
+| ``naive`` | the other side's newest snapshot only, phases in turn (the first attacker phase: the scripted teams) |
+| ``league`` | the config's league: PFSP over the other side's scripted players and snapshots |
+| ``league-do`` | as ``league``, with PSRO's double-oracle step (``league.double_oracle``): at each phase's end a best response of that phase's side, trained against the other side's Nash mixture, joins the pool |
+| ``league-do-rm`` | as ``league-do``, the best responses against the other side's regret-matching distribution (``meta_solver: regret_matching``) |
 
-Every arm: method-2 attacker reward with a terminal reward of +-``--terminal-reward`` (so
-both sides learn to win), ``--phases`` alternating phases of ``--phase-env-steps``
-(``protocol``: two phases of half the total each), and phases that end only on their
-budget, so each side samples the same env steps in every arm. With exploiters a phase ends
-on its learner's env steps and the exploiter samples about as many again, so that arm's
-phases get half the budget: the same total per side, half of it the learner's.
+Every arm: one attacker (reward method 2), a terminal reward of +-``--terminal-reward`` (both
+sides learn to win), no exploiters, ``--phases`` alternating phases of ``--phase-env-steps``
+(``protocol``: two phases of half the total each), each ending on its budget only, so each
+side's learner samples the same env steps in every arm. The double-oracle best responses
+sample ``--do-env-steps`` each on top of that (one per phase, of that phase's side): the
+page reports them beside the learner's.
 
-Each arm is trained once per ``--train-seeds`` seed (``OUT/ARM/seed-S``); an arm's runs
-differ only in their seed. For each run's final team (and final attacker): the win rate
-against every scripted player of the other side and every arm's final player of the other
-side of the same training seed on the same ``--episodes`` fixed games (Wilson 95%
-intervals), and its exploitability: ``--seeds`` best responses (``league.exploit``; their
-mean) of ``--br-env-steps`` each, against a team, or ``--team-br-env-steps`` (a team's best
-response to an attacker: the team learns more slowly). Per arm, the mean exploitability over training seeds with
-its Student-t 95% interval over the training seeds (``mean_interval``). Writes ``OUT/league_quality.md``.
-Each run is a Ray Tune trial (``league.studies.trials``; its output in ``OUT/ARM-seed-S.log``),
-``--jobs`` at a time, or on the Ray cluster at ``--address`` (``--cpus-per-run`` CPUs each; OUT
-on storage every node shares). Restarts reuse finished runs and best responses (and resume
-unfinished runs).
+Seeds: each arm is trained once per ``--seeds`` seed (``OUT/ARM/seed-S``, its output in
+``OUT/logs/ARM-seed-S.log``); an arm's runs differ only in their seed. ``--tuning-seeds``
+names the seeds that chose the config's settings: printed on the page, refused among
+``--seeds``.
+
+Measured on the held-out test games (``--episodes`` of them, ``envs.scenarios``), which no
+training, curve or tuning played:
+
+1. each run's final player of each side of ``--sides`` against every scripted player of the
+   other side (recorded in the run's store, source ``test``) and against every arm's final
+   player of the other side of the same training seed: win rates with Wilson 95% intervals;
+2. its exploitability: ``--br-seeds`` best responses from scratch (``python -m league.exploit
+   --games test --json``) against (a) the final snapshot and (b) the side's Nash mixture of
+   the run's final meta-game (``nash-team``, ``nash-attacker``), each of ``--br-env-steps``
+   (a team's, against an attacker: ``--team-br-env-steps``): their mean win rate, its margin
+   over the best league member of the other side (chosen on the dev games, measured on the
+   test games) and how many learning curves were flat at the end (else the figure is a lower
+   bound). Over the training seeds, per arm: the mean with its Student-t 95% interval, and the
+   paired t-test over the training seeds of the arm minus ``league``.
+
+Writes ``OUT/league_quality.md``. Each run is a Ray Tune trial (``league.studies.trials``),
+``--jobs`` at a time, or on the Ray cluster at ``--address`` (``--cpus-per-run`` CPUs each;
+OUT on storage every node shares); the measurements and best responses then run on this
+machine, one at a time. Run again, the same command reuses finished runs (and resumes
+unfinished ones), the recorded test games and the best responses whose results it kept
+(``OUT/ARM/seed-S/exploitability/*.json``, one ``league.exploit --json`` output per call).
+
+Exit codes: 0 done; 2 a bad argument (an arm's config that does not load, a tuning seed among
+the seeds, a run directory of another config); 1 a training run or a best response that failed
+(run again to resume).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
+import shlex
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from envs.scenarios import evaluation_scenarios
-from league.cli import cluster_or_exit
-from league.analysis.exploitability import exploitability
-from league.evaluation.engine import play_fixed_games, policies_of
-from league.analysis.statistics import SEED_INTERVAL, mean_interval, wilson_interval
+from league.analysis.exploitability import FLAT
+from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
+from league.cli import cluster_or_exit, command_parser, count, tuning_seeds_error
+from league.config import ConfigError, load_config
 from league.core.payoff import wins_of
 from league.core.players import Player, other_side
+from league.evaluation.engine import play_fixed_games, policies_of
+from league.evaluation.results import test_game_stats
+from league.state.run_dir import RunDirError, open_run, read_config
+from league.studies.runs import speed
 from league.studies.trials import RunFailed, TrainingRun, train_runs
-from league.state.run_dir import RunDirError, open_run
 
-ARMS = ("protocol", "naive", "league", "league-exploiters", "league-variance", "league-psro")
-PFSP_OF_ARM = {"league-variance": "variance", "league-psro": "nash"}  # the others: squared
+ARMS = ("protocol", "naive", "league", "league-do", "league-do-rm")
+REFERENCE_ARM = "league"  # the arm the others are tested against
+SIDES = ("team", "attacker")
+TARGETS = ("final", "nash")  # what best responses train against: the final snapshot, the side's Nash mixture
+EXPLOITABILITY_DIR = "exploitability"  # in a run directory: the league.exploit --json outputs the study kept
 
 
-def arm_overrides(arm: str, args: argparse.Namespace, seed: int) -> list[str]:
-    """The ``--set`` overrides of ``configs/selfplay_league.yaml`` for one arm's run of one training seed."""
+def arm_overrides(arm: str, args, seed: int) -> list[str]:
+    """The ``--set`` overrides of ``args.config`` for one arm's run of one training seed: ``args.overrides``
+    first, then the arm's (which make the comparison, so they win)."""
     common = [
-        "game.attacker_reward=2", f"game.terminal_reward={args.terminal_reward}", "league.attacker_reward_methods=[2]",
+        *args.overrides, "game.attacker_reward=2", f"game.terminal_reward={args.terminal_reward}",
+        "league.attacker_reward_methods=[2]", "league.exploiters=[]", "league.exploiter_phases=all",
+        "league.double_oracle.env_steps=0", "league.double_oracle.meta_solver=nash",
         f"evaluation.episodes={args.episodes}", f"seed={seed}",
-        # The arms' exploiters train beside their learners (or not at all), not in a final phase.
-        "league.exploiter_phases=all",
     ]
     per_side = args.phases // 2 * args.phase_env_steps
     if arm == "protocol":
         phases = [f"{{learner: attacker, env_steps: {per_side}, opponents: scripted}}",
                   f"{{learner: team, env_steps: {per_side}, opponents: latest}}"]
-        return [*common, "league.mode=protocol", "league.exploiters=[]", f"league.phases=[{', '.join(phases)}]"]
+        return [*common, "league.mode=protocol", f"league.phases=[{', '.join(phases)}]"]
     if arm == "naive":
         phases = [f"{{learner: {'attacker' if i % 2 == 0 else 'team'}, env_steps: {args.phase_env_steps}, "
                   f"opponents: {'scripted' if i == 0 else 'latest'}}}" for i in range(args.phases)]
-        return [*common, "league.mode=protocol", "league.exploiters=[]", f"league.phases=[{', '.join(phases)}]"]
-    exploiters = arm == "league-exploiters"
-    return [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
-            f"league.phase_env_steps={args.phase_env_steps // 2 if exploiters else args.phase_env_steps}",
-            "league.team_phase_env_steps=null",  # both sides' phases: the same budget
-            "league.snapshot_win_rate=1.0", f"league.min_phase_episodes={10**9}",  # a phase ends on its budget only
-            f"league.exploiters=[{'attacker, team' if exploiters else ''}]",
-            f"league.pfsp={PFSP_OF_ARM.get(arm, 'squared')}"]
+        return [*common, "league.mode=protocol", f"league.phases=[{', '.join(phases)}]"]
+    selfplay = [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
+                f"league.phase_env_steps={args.phase_env_steps}", "league.team_phase_env_steps=null",
+                "league.snapshot_win_rate=1.0", f"league.min_phase_episodes={10**9}"]  # a phase ends on its budget only
+    if arm == "league":
+        return selfplay
+    oracle = [f"league.double_oracle.env_steps={args.do_env_steps}"]
+    if arm == "league-do-rm":
+        oracle.append("league.double_oracle.meta_solver=regret_matching")
+    return [*selfplay, *oracle]
 
 
-def final_player(players: list[Player], side: str, kind: str = "snapshot") -> Player | None:
-    """The side's newest snapshot of its main learner (``kind="exploiter_snapshot"``: of its
-    exploiter); for attackers, the method-2 one."""
-    snapshots = [p for p in players if p.side == side and p.kind == kind and p.reward_method in (None, 2)]
-    return max(snapshots, key=lambda p: p.version, default=None)
+def training_run(arm: str, seed: int, args) -> TrainingRun:
+    """One arm's run of one seed: ``OUT/ARM/seed-S``, its output in ``OUT/logs/ARM-seed-S.log`` (as ``league.study``)."""
+    return TrainingRun(args.config, args.out / arm / f"seed-{seed}", tuple(arm_overrides(arm, args, seed)),
+                       f"{arm}, seed {seed}", args.out / "logs" / f"{arm}-seed-{seed}.log")
 
 
-def br_budget(player: Player, args: argparse.Namespace) -> int:
-    """The env steps of each best response to ``player``: a team's to an attacker, an attacker's to a team."""
-    return args.team_br_env_steps if player.side == "attacker" else args.br_env_steps
+@dataclass(frozen=True)
+class Finals:
+    """What one run made: its final player of each side, the scripted players, the double oracle's env steps per side."""
 
+    run_dir: Path
+    players: dict[str, Player]  # side -> its newest snapshot (the attacker: of reward method 2)
+    scripted: dict[str, list[Player]]  # side -> its scripted players
+    oracle_steps: dict[str, int]  # side -> env steps its double-oracle best responses trained
 
-def exploitability_of(run_dir: Path, player: Player, args: argparse.Namespace):
-    """Train the missing best responses against ``player`` (``league.exploit``), then read them all back."""
-    budget = br_budget(player, args)
-    _, store = open_run(run_dir)
-    try:
-        done = [p for p in store.players(kind="best_response")
-                if p.parent == player.id and p.env_step_budget == budget]
-    finally:
-        store.close()
-    if len(done) < args.seeds:
-        print(f"exploiting {run_dir.name}/{player.name}: {args.seeds - len(done)} best response(s)", flush=True)
-        subprocess.run([sys.executable, "-m", "league.exploit", "--run-dir", str(run_dir), "--player", player.name,
-                        "--env-steps", str(budget), "--seeds", str(args.seeds - len(done)),
-                        "--episodes", str(args.episodes)], check=True)
-    _, store = open_run(run_dir)
-    try:
-        players = store.players()
-        found = [e for e in exploitability(players, store.newest_evaluation_rows())
-                 if e.exploited.id == player.id and e.budget == budget]
-    finally:
-        store.close()
-    return found[0]
+    @classmethod
+    def of(cls, run_dir: Path) -> "Finals":
+        _, store = open_run(run_dir)
+        try:
+            players = store.players()
+        finally:
+            store.close()
+        def of_kind(side: str, kind: str) -> list[Player]:
+            return [p for p in players if p.side == side and p.kind == kind]
+
+        return cls(run_dir, {side: max(of_kind(side, "snapshot"), key=lambda p: p.version) for side in SIDES},
+                   {side: of_kind(side, "scripted") for side in SIDES},
+                   {side: sum(p.env_steps for p in of_kind(side, "oracle")) for side in SIDES})
 
 
 def win_cell(wins: int, games: int) -> str:
@@ -124,111 +146,206 @@ def win_cell(wins: int, games: int) -> str:
     return f"{wins / games:.3f} [{low:.2f}, {high:.2f}]"
 
 
+def against_scripted(finals: Finals, episodes: int) -> dict[str, list[str]]:
+    """Per side, its final player's win rate cell against each scripted player of the other side, on the test games
+    (played and recorded in the run's store where missing)."""
+    run, store = open_run(finals.run_dir)
+    try:
+        attacker, team = finals.players["attacker"], finals.players["team"]
+        pairs = {"attacker": [(attacker, t) for t in finals.scripted["team"]],
+                 "team": [(a, team) for a in finals.scripted["attacker"]]}
+        stats = test_game_stats(store, run, finals.run_dir, [*pairs["attacker"], *pairs["team"]], episodes)
+    finally:
+        store.close()
+    return {side: [win_cell(wins_of(side, stats[a.id, t.id].attacker_wins, episodes), episodes) for a, t in pairs[side]]
+            for side in SIDES}
+
+
+def cross_play(finals: dict[str, Finals], game, episodes: int) -> dict[tuple[str, str], int]:
+    """Attacker wins of each arm's final attacker against each arm's final team (one training seed), on the test games."""
+    positions = evaluation_scenarios(game.scenario, episodes, "test")
+    return {(x, y): int(play_fixed_games(game, positions, {
+        **policies_of(finals[x].players["attacker"], finals[x].run_dir),
+        **policies_of(finals[y].players["team"], finals[y].run_dir),
+    }).attacker_wins.sum()) for x in finals for y in finals}
+
+
+@dataclass(frozen=True)
+class Exploited:
+    """The best responses against one player of one run on the test games, as ``league.exploit --json`` gave them."""
+
+    name: str
+    seeds: list[dict]  # per best response: win_rate, curve_verdict, ...
+    member: dict | None  # the best league member of the other side: player, win_rate (test games)
+
+    @property
+    def mean(self) -> float:
+        return float(np.mean([s["win_rate"] for s in self.seeds]))
+
+    def cells(self) -> list[str]:
+        """Win rates (their mean, each best response's), margin over the best league member, flat curves."""
+        rates = ", ".join(f"{s['win_rate']:.3f}" for s in self.seeds)
+        margin = f"{self.mean - self.member['win_rate']:+.3f} ({self.member['player']})" if self.member else "no member"
+        return [f"{self.mean:.3f} ({rates})" if len(self.seeds) > 1 else rates, margin,
+                f"{sum(s['curve_verdict'] == FLAT for s in self.seeds)}/{len(self.seeds)}"]
+
+
+def run_exploit(argv: list[str]) -> dict:
+    """``python -m league.exploit ARGV`` (with ``--json``) in its own process: its JSON; its progress goes to stderr."""
+    done = subprocess.run([sys.executable, "-m", "league.exploit", *argv], stdout=subprocess.PIPE, text=True, check=True)
+    return json.loads(done.stdout)
+
+
+def exploited(run_dir: Path, name: str, side: str, args) -> Exploited:
+    """``args.br_seeds`` best responses against the player ``name`` of ``side`` in the run: those kept from earlier
+    calls, and the missing ones trained now by ``league.exploit`` (its progress on stderr, its JSON kept)."""
+    budget = args.team_br_env_steps if side == "attacker" else args.br_env_steps
+    kept = run_dir / EXPLOITABILITY_DIR / f"{name}-{budget}-steps-{args.episodes}-test-games.json"
+    calls = json.loads(kept.read_text()) if kept.exists() else []
+    missing = args.br_seeds - sum(len(call["seeds"]) for call in calls)
+    if missing > 0:
+        print(f"exploiting {run_dir}: {name}, {missing} best response(s) of {budget:,} env steps", flush=True)
+        calls.append(run_exploit(["--run-dir", str(run_dir), "--player", name, "--env-steps", str(budget),
+                                  "--seeds", str(missing), "--episodes", str(args.episodes), "--games", "test", "--json"]))
+        kept.parent.mkdir(exist_ok=True)
+        partial = kept.with_suffix(".partial")
+        partial.write_text(json.dumps(calls, indent=1))
+        partial.replace(kept)  # whole or not at all: a call killed before this line is trained again, on new seeds
+    return Exploited(name, [s for call in calls for s in call["seeds"]][:args.br_seeds], calls[-1]["best_member"])
+
+
+def over_seeds(values: dict[str, dict[int, float]], arm: str, seeds: list[int], arms: list[str]) -> list[str]:
+    """An arm's mean over training seeds with its Student-t interval, and its paired t-test against ``REFERENCE_ARM``."""
+    mine = [values[arm][s] for s in seeds]
+    interval = "[{:.3f}, {:.3f}]".format(*mean_interval(mine)) if len(seeds) > 1 else "(one seed)"
+    if arm == REFERENCE_ARM or REFERENCE_ARM not in arms:
+        paired = "-"
+    else:
+        differences = [values[arm][s] - values[REFERENCE_ARM][s] for s in seeds]
+        paired = f"{np.mean(differences):+.3f}" + (f", p = {paired_t_test(differences):.3f}" if len(seeds) > 1 else "")
+    return [f"{np.mean(mine):.3f} {interval}", paired]
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = command_parser(prog="python bench/league_quality.py", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("runs/league_quality"))
-    parser.add_argument("--jobs", type=int, help="runs trained side by side (default: 1; with --address: as many as "
-                        "the cluster's CPUs hold)")
-    parser.add_argument("--address", help="train the arms as Tune trials on this Ray cluster (OUT on shared storage)")
-    parser.add_argument("--cpus-per-run", type=float, default=2.0, help="CPUs Ray reserves per run (default 2)")
+    parser.add_argument("--config", default="selfplay_league", help="the config every arm starts from (default selfplay_league)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="an override for every run of every arm (the arms' own overrides win)")
     parser.add_argument("--arms", nargs="+", default=list(ARMS), choices=ARMS)
-    parser.add_argument("--phases", type=int, default=6, help="alternating phases (even: both sides the same budget)")
-    parser.add_argument("--phase-env-steps", type=int, default=200_000)
+    parser.add_argument("--seeds", type=count(0), nargs="+", default=[10, 11, 12, 13, 14], help="training seeds")
+    parser.add_argument("--tuning-seeds", type=count(0), nargs="*", default=[0, 1, 2],
+                        help="the seeds that chose the config's settings (printed; refused among --seeds)")
+    parser.add_argument("--phases", type=count(2), default=6, help="alternating phases (even: both sides the same budget)")
+    parser.add_argument("--phase-env-steps", type=count(1), default=200_000)
+    parser.add_argument("--do-env-steps", type=count(1), default=100_000,
+                        help="each double-oracle best response's env steps (league-do arms; on top of the learners')")
     parser.add_argument("--terminal-reward", type=float, default=30.0)
-    parser.add_argument("--br-env-steps", type=int, default=200_000, help="each best response's training budget")
-    parser.add_argument("--team-br-env-steps", type=int, help="a team's best response's budget (default: --br-env-steps)")
-    parser.add_argument("--seeds", type=int, default=3, help="best responses per final player")
-    parser.add_argument("--episodes", type=int, default=1000, help="fixed evaluation games per pair")
-    parser.add_argument("--train-seeds", type=int, nargs="+", default=[0, 1, 2], help="each arm's training seeds")
-    parser.add_argument("--sides", nargs="+", default=["team", "attacker"], choices=["team", "attacker"],
-                        help="whose exploitability to measure (teams first)")
+    parser.add_argument("--br-env-steps", type=count(1), default=200_000, help="each best response's training budget")
+    parser.add_argument("--team-br-env-steps", type=count(1), help="a team's best response's budget (default: --br-env-steps)")
+    parser.add_argument("--br-seeds", type=count(1), default=2, help="best responses per exploited player (default 2)")
+    parser.add_argument("--episodes", type=count(1), default=1000, help="test games per pair (default 1000)")
+    parser.add_argument("--sides", nargs="+", default=list(SIDES), choices=SIDES, help="whose exploitability to measure")
+    parser.add_argument("--jobs", type=count(1), help="runs trained side by side (default: 1; with --address: as many as "
+                        "the cluster's CPUs hold)")
+    parser.add_argument("--address", help="train the runs as Tune trials on this Ray cluster (OUT on shared storage)")
+    parser.add_argument("--cpus-per-run", type=float, default=2.0, help="CPUs Ray reserves per run (default 2)")
     args = parser.parse_args(argv)
     args.team_br_env_steps = args.team_br_env_steps or args.br_env_steps
-    if args.phases < 2 or args.phases % 2 or min(args.phase_env_steps, args.br_env_steps, args.team_br_env_steps, args.seeds, args.episodes) < 1:
-        parser.error("--phases must be even and at least 2; budgets, --seeds and --episodes at least 1")
-    if (args.jobs is not None and args.jobs < 1) or args.cpus_per_run <= 0:
-        parser.error("--jobs must be at least 1 and --cpus-per-run positive")
+    args.seeds = list(dict.fromkeys(args.seeds))  # a seed named twice is one run, counted once over seeds
+    if args.phases % 2 or args.cpus_per_run <= 0:
+        parser.error("--phases must be even (both sides the same budget) and --cpus-per-run positive")
+    chosen = tuning_seeds_error(args.seeds, args.tuning_seeds)
+    if chosen:
+        print(f"error: {chosen}", file=sys.stderr)
+        return 2
+    try:
+        for arm in args.arms:
+            load_config(args.config, arm_overrides(arm, args, args.seeds[0]))
+    except ConfigError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     if args.address:
         args.address = cluster_or_exit(args.address)
-    args.out.mkdir(parents=True, exist_ok=True)
-    walls_file = args.out / "wall_times.json"
-
-    def read_walls() -> dict[str, float]:
-        return json.loads(walls_file.read_text()) if walls_file.exists() else {}
-    runs = [(arm, seed, args.out / arm / f"seed-{seed}") for arm in args.arms for seed in args.train_seeds]
-
-    def training_run(arm: str, seed: int, run_dir: Path) -> TrainingRun:
-        """One arm's run of one training seed."""
-        return TrainingRun("selfplay_league", run_dir, tuple(arm_overrides(arm, args, seed)), f"{arm} seed {seed}",
-                           args.out / f"{arm}-seed-{seed}.log")
-
+    torch.set_num_threads(1)  # the test games are played in this process, one pair at a time
+    runs = {(arm, seed): training_run(arm, seed, args) for arm in args.arms for seed in args.seeds}
     try:
-        trained = train_runs([training_run(*run) for run in runs], args.out, args.jobs, args.cpus_per_run, args.address)
+        train_runs(list(runs.values()), args.out, args.jobs, args.cpus_per_run, args.address)
     except RunDirError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except RunFailed as err:
         print(f"error: {err}; run this command again to resume", file=sys.stderr)
         return 1
-    # read again: other invocations (other arms or seeds, into the same OUT) may have added theirs
-    walls_file.write_text(json.dumps({**read_walls(), **{t.run.label: t.seconds for t in trained if not t.reused}}, indent=1))
+    try:
+        page = measure(args, {key: run.run_dir for key, run in runs.items()}, argv if argv is not None else sys.argv[1:])
+    except subprocess.CalledProcessError as err:
+        print(f"error: {shlex.join(err.cmd)} failed (exit {err.returncode}); run this command again to resume",
+              file=sys.stderr)
+        return 1
+    (args.out / "league_quality.md").write_text(page)
+    print(page)
+    return 0
 
-    finals: dict[tuple[str, int], dict[str, Player]] = {}
-    exploiter_steps: dict[tuple[str, int], dict[str, int]] = {}
-    for arm, seed, run_dir in runs:
-        run, store = open_run(run_dir)
-        try:
-            players = store.players()
-        finally:
-            store.close()
-        finals[arm, seed] = {side: final_player(players, side) for side in ("attacker", "team")}
-        exploiter_steps[arm, seed] = {side: getattr(final_player(players, side, "exploiter_snapshot"), "env_steps", 0)
-                                      for side in ("attacker", "team")}
-        # every run has the same game and scripted players (arm_overrides changes only the league and the seed)
-        scripted = {side: [p for p in players if p.side == side and p.kind == "scripted"] for side in ("attacker", "team")}
 
-    positions = evaluation_scenarios(run.game.scenario, args.episodes)
+def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str:
+    """Play and exploit every run's final players (reusing what earlier calls kept); the page."""
+    finals = {key: Finals.of(run_dir) for key, run_dir in run_dirs.items()}
+    game = read_config(run_dirs[args.arms[0], args.seeds[0]]).game  # every arm plays the same game (arm_overrides)
+    scripted_cells, crossed, found = {}, {}, {}
+    for seed in args.seeds:
+        for arm in args.arms:
+            print(f"measuring {arm}, seed {seed} on {args.episodes} test games per pair", flush=True)
+            scripted_cells[arm, seed] = against_scripted(finals[arm, seed], args.episodes)
+        crossed[seed] = cross_play({arm: finals[arm, seed] for arm in args.arms}, game, args.episodes)
+    for side in args.sides:
+        for (arm, seed), final in finals.items():
+            for target in TARGETS:
+                name = final.players[side].name if target == "final" else f"nash-{side}"
+                found[arm, seed, side, target] = exploited(final.run_dir, name, side, args)
+    any_run = finals[args.arms[0], args.seeds[0]]
+    per_side = args.phases // 2 * args.phase_env_steps
     lines = [
-        "# Is the league any good? (bench/league_quality.py)", "",
-        f"Settings: `selfplay_league.yaml`, method-2 attacker, terminal reward +-{args.terminal_reward:g}, "
-        f"{args.phases // 2 * args.phase_env_steps:,} env steps per side in every arm, training seeds "
-        f"{', '.join(map(str, args.train_seeds))}; {args.episodes} fixed evaluation games per pair (Wilson 95%); "
-        f"exploitability: {args.seeds} best responses per final player, {args.br_env_steps:,} env steps each against "
-        f"a team, {args.team_br_env_steps:,} against an attacker "
-        f"(their mean), and per arm the mean over training seeds ({SEED_INTERVAL}). Wall time per "
-        "training run: " + ", ".join(f"{label} {seconds:.0f} s" for label, seconds in read_walls().items()) + ".",
+        "# Does the league make less exploitable players? (bench/league_quality.py)", "",
+        f"Arms {', '.join(args.arms)} from `{args.config}`: method-2 attacker, terminal reward +-{args.terminal_reward:g}, "
+        f"{per_side:,} env steps per side for each learner in every arm; the double-oracle arms' best responses "
+        f"{args.do_env_steps:,} env steps each, one after each phase, on top (\"+ DO\": of that side's). Training seeds "
+        f"{' '.join(map(str, args.seeds))} (settings chosen on seeds {' '.join(map(str, args.tuning_seeds)) or 'none named'}). "
+        f"Every figure on {args.episodes} held-out test games per pair (Wilson 95% within a seed). Exploitability: "
+        f"{args.br_seeds} best response(s) from scratch per exploited player, {args.br_env_steps:,} env steps against a "
+        f"team, {args.team_br_env_steps:,} against an attacker (`league.exploit --games test`); margin: over the best "
+        "league member of the other side (chosen on the dev games); flat: learning curves flat over the last third "
+        f"of the budget (else the figure is a lower bound). Over seeds: {SEED_INTERVAL}, paired t-test minus `league`.",
+        "", "```", "python bench/league_quality.py " + shlex.join(argv), "```",
     ]
     for side in args.sides:
         other = other_side(side)
-        titles = [p.name.removeprefix("scripted-") for p in scripted[other]] + [f"{arm}'s final {other}" for arm in args.arms]
-        lines += ["", f"## Final {side}s: win rate against the other side (same training seed), and exploitability", "",
-                  f"| arm | seed | {side} | env steps (learner + exploiter) | " + " | ".join(titles) + " | exploitability (per best response) |",
-                  "| --- " * (len(titles) + 5) + "|"]
-        by_arm: dict[str, list[float]] = {arm: [] for arm in args.arms}
-        for arm, seed, run_dir in runs:
-            player = finals[arm, seed][side]
-            # (player, its run directory): a scripted player needs none, a learned one its module from there
-            columns = [(p, None) for p in scripted[other]] + [(finals[a, seed][other], args.out / a / f"seed-{seed}") for a in args.arms]
-            cells = []
-            for opponent, home in columns:
-                pair = {**policies_of(player, run_dir), **policies_of(opponent, home)}
-                result = play_fixed_games(run.game, positions, pair)
-                wins = wins_of(side, int(result.attacker_wins.sum()), args.episodes)
-                cells.append(win_cell(wins, args.episodes))
-            found = exploitability_of(run_dir, player, args)
-            by_arm[arm].append(found.mean)
-            seeds = ", ".join(f"{r.win_rate:.3f}" for r in found.results)
-            steps = f"{player.env_steps:,}" + (f" + {exploiter_steps[arm, seed][side]:,}" if exploiter_steps[arm, seed][side] else "")
-            lines.append(f"| {arm} | {seed} | {player.name} | {steps} | " + " | ".join(cells) + f" | {found.mean:.3f} ({seeds}) |")
+        titles = [p.name.removeprefix("scripted-") for p in any_run.scripted[other]] + [f"{a}'s {other}" for a in args.arms]
+        lines += ["", f"## Final {side}s: their win rate on the test games", "",
+                  f"| arm | seed | {side} | " + " | ".join(titles) + " |", "| --- " * (len(titles) + 3) + "|"]
+        for (arm, seed), final in finals.items():
+            cells = scripted_cells[arm, seed][side] + [
+                win_cell(wins_of(side, crossed[seed][(arm, y) if side == "attacker" else (y, arm)], args.episodes),
+                         args.episodes) for y in args.arms]
+            lines.append(f"| {arm} | {seed} | {final.players[side].name} | " + " | ".join(cells) + " |")
+        lines += ["", f"## Exploitability of the final {side}s: best responses' win rate on the test games", "",
+                  "| arm | seed | env steps + DO | final: win rate | margin (member) | flat | "
+                  "Nash mixture: win rate | margin (member) | flat |", "| --- " * 9 + "|"]
+        for (arm, seed), final in finals.items():
+            steps = f"{final.players[side].env_steps:,} + {final.oracle_steps[side]:,}"
+            cells = [c for target in TARGETS for c in found[arm, seed, side, target].cells()]
+            lines.append(f"| {arm} | {seed} | {steps} | " + " | ".join(cells) + " |")
             print(lines[-1], flush=True)
-        lines += ["", f"Exploitability of the final {side}, mean over training seeds:", "",
-                  f"| arm | mean | {SEED_INTERVAL} |", "| --- | --- | --- |"]
-        for arm, values in by_arm.items():
-            spread = "[{:.3f}, {:.3f}]".format(*mean_interval(values)) if len(values) > 1 else "(one seed)"
-            lines.append(f"| {arm} | {np.mean(values):.3f} | {spread} |")
-    (args.out / "league_quality.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-    return 0
+        values = {target: {arm: {seed: found[arm, seed, side, target].mean for seed in args.seeds} for arm in args.arms}
+                  for target in TARGETS}
+        lines += ["", f"Over training seeds ({SEED_INTERVAL}; minus `{REFERENCE_ARM}`: the mean of the per-seed "
+                  "differences, above 0 more exploitable, and the paired t-test's p):", "",
+                  "| arm | final: exploitability | minus league | Nash mixture: exploitability | minus league |",
+                  "| --- " * 5 + "|"]
+        lines += [f"| {arm} | " + " | ".join(c for target in TARGETS for c in over_seeds(values[target], arm, args.seeds, args.arms))
+                  + " |" for arm in args.arms]
+    lines += ["", "Training:", ""] + [f"- {arm}, seed {seed}: {speed(d)}" for (arm, seed), d in run_dirs.items()]
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

@@ -70,6 +70,12 @@ class PairProgress:
         print(f"{self.what}: {done} of {total} pairs, {elapsed:.0f} s{left}", file=self.stream, flush=True)
 
 
+def tuning_seeds_error(seeds: list[int], tuning_seeds: list[int]) -> str | None:
+    """Why a study may not report ``seeds`` (those among the seeds that chose its settings), or ``None``."""
+    chosen = sorted(set(seeds) & set(tuning_seeds))
+    return f"--seeds {chosen} also chose the settings (--tuning-seeds); report other seeds" if chosen else None
+
+
 def cluster_or_exit(address: str) -> str:
     """A many-runs command's ``--address``, checked before anything is written: the address of
     the cluster that answered, or one line and exit 2 where none does (not a hang)."""

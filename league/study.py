@@ -33,21 +33,12 @@ from pathlib import Path
 
 import torch
 
-from league.cli import cluster_or_exit, command_parser, count
+from league.cli import cluster_or_exit, command_parser, count, tuning_seeds_error
 from league.config import ConfigError, load_config
-from league.state.run_dir import RunDirError, open_run
+from league.state.run_dir import RunDirError
 from league.studies.beats_scripted import measure_on_test_games, table
+from league.studies.runs import speed
 from league.studies.trials import RunFailed, TrainingRun, train_runs
-
-
-def speed(run_dir: Path) -> str:
-    """One run's training: env steps, training seconds and env steps per second."""
-    _, store = open_run(run_dir)
-    try:
-        steps, seconds = store.last_iteration()["env_steps"], store.training_seconds()
-    finally:
-        store.close()
-    return f"{steps:,} env steps in {seconds:.0f} s of training iterations ({steps / seconds:,.0f} env steps/s)"
 
 
 def study_run(out: Path, config: str, seed: int, overrides: list[str]) -> TrainingRun:
@@ -75,9 +66,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.cpus_per_run <= 0:
         parser.error("--cpus-per-run must be positive")
-    chosen = sorted(set(args.seeds) & set(args.tuning_seeds))
+    chosen = tuning_seeds_error(args.seeds, args.tuning_seeds)
     if chosen:
-        print(f"error: --seeds {chosen} also chose the settings (--tuning-seeds); report other seeds", file=sys.stderr)
+        print(f"error: {chosen}", file=sys.stderr)
         return 2
     if len(set(args.seeds)) < 2:
         print("error: --seeds: at least two seeds for an interval over seeds", file=sys.stderr)

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Callable
 
 from league.config import RUN_CONFIG_FILE, added_at_its_default, changed_keys, load_config
-from league.state.run_dir import EVALUATION_FILE, RunDirError, lock_run, read_config
+from league.state.run_dir import EVALUATION_FILE, RunDirError, lock_run, open_run, read_config
 
 
 def finished(run_dir: Path) -> bool:
@@ -105,3 +105,13 @@ def newest_progress_line(log: Path) -> str | None:
         lines = f.read().decode(errors="replace").splitlines()
     return next((line.strip() for line in reversed(lines) if "% of " in line and " left" in line), None)
 
+
+
+def speed(run_dir: Path) -> str:
+    """A finished run's training: env steps, training seconds and env steps per second."""
+    _, store = open_run(run_dir)
+    try:
+        steps, seconds = store.last_iteration()["env_steps"], store.training_seconds()
+    finally:
+        store.close()
+    return f"{steps:,} env steps in {seconds:.0f} s of training iterations ({steps / seconds:,.0f} env steps/s)"

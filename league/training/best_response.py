@@ -48,7 +48,9 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from league.analysis.exploitability import BestResponseResult, CurvePoint, Exploitability, league_baseline, mixture_baseline
+from league.analysis.exploitability import (
+    Baseline, BestResponseResult, CurvePoint, Exploitability, league_baseline, mixture_baseline,
+)
 from league.config import RunConfig
 from league.core.league import League, Records, Weights
 from league.core.match_plan import MatchPlan
@@ -281,23 +283,45 @@ class Budget:
     """How each best response is trained and measured."""
 
     env_steps: int  # trained for
-    episodes: int  # fixed dev games it is evaluated on against the exploited player
+    episodes: int  # fixed games it is evaluated on against the exploited player
     from_prior: bool = False  # started from the run's prior (else from scratch)
+    games: str = "dev"  # which fixed games: the dev games, or the held-out test games (a study's)
+
+
+def on_test_games(baseline: Baseline, run: RunConfig, run_dir: Path, store: LeagueStore, episodes: int) -> Baseline:
+    """``baseline`` with its member, chosen on the dev games, measured against the exploited player (a mixture:
+    each of its members, by their weights) on the first ``episodes`` held-out test games, played and recorded
+    where the store has none: the best of many members on the dev games is a little lucky there, and a margin
+    over its dev-game rate would be too small by that luck."""
+    from league.evaluation.results import test_game_stats
+
+    member, exploited = baseline.member, baseline.exploited
+    if member is None:
+        return replace(baseline, game_set="test")
+    opponents, weights = (exploited.members, exploited.weights) if isinstance(exploited, Mixture) else ((exploited,), (1.0,))
+    pairs = [(member, o) if member.side == "attacker" else (o, member) for o in opponents]
+    stats = test_game_stats(store, run, run_dir, pairs, episodes)
+    rate = sum(w * wins_of(member.side, stats[a.id, t.id].attacker_wins, episodes) / episodes
+               for w, (a, t) in zip(weights, pairs))
+    return replace(baseline, member_wins=rate * episodes, member_games=episodes, game_set="test")
 
 
 def train_best_responses(
     run: RunConfig, run_dir: Path, store: LeagueStore, exploited: Contestant, seeds: list[int], budget: Budget, say=print,
 ) -> Exploitability:
     """Train, evaluate and record one best response per seed; their results against ``exploited`` (a
-    mixture: a member drawn per fixed game from its seed), with the league's baselines (which
-    best responses do not change) and each one's learning curve."""
+    mixture: a member drawn per fixed game from its seed) on the budget's fixed games, with the
+    league's baselines (which best responses do not change) and each one's learning curve."""
     env_steps, episodes, from_prior = budget.env_steps, budget.episodes, budget.from_prior
     from league.evaluation.engine import evaluate_pairs
+    from league.evaluation.results import EVALUATION_SOURCE
     from league.core.payoff import league_ratings
 
     evaluated = store.newest_evaluation_rows()
     baseline = (mixture_baseline(exploited, store.players(), evaluated) if isinstance(exploited, Mixture)
                 else league_baseline(exploited, store.players(), evaluated))
+    if budget.games == "test":
+        baseline = on_test_games(baseline, run, run_dir, store, episodes)
     say(baseline.line())
     results = []
     for seed in seeds:
@@ -315,25 +339,27 @@ def train_best_responses(
         last = store.last_iteration()
         iteration = last["iteration"] if last else 0
         try:  # a module without its player row is removed: the database and players/ stay in step
-            [played] = evaluate_pairs(run.game, run_dir, [pair], episodes)
+            [played] = evaluate_pairs(run.game, run_dir, [pair], episodes, games=budget.games)
             with store.transaction():
                 player = store.add_player(iteration, new)
                 if isinstance(exploited, Mixture):  # no league result: what it won goes into the meta table
                     store.set_meta(MIXTURE_BEST_RESPONSES, mixture_best_responses(store) + [{
                         "player": player.name, "mixture": exploited.name, "seed": seed, "budget": env_steps,
                         "from_prior": from_prior, "wins": wins_of(side, played.attacker_wins, played.games),
-                        "games": played.games, "mixture_seed": exploited.seed,
+                        "games": played.games, "game_set": budget.games, "mixture_seed": exploited.seed,
                     }])
                 else:
                     # the provisional player's id becomes the new row's
                     rows = [replace(r, attacker=player.id) if r.attacker == provisional.id else replace(r, team=player.id)
                             for r in played.outcome_rows()]
-                    store.record_evaluation(iteration, rows)
-                    store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
+                    store.record_evaluation(iteration, rows, EVALUATION_SOURCE[budget.games])
+                    if budget.games == "dev":  # the league's ratings never see the test games
+                        store.replace_ratings(iteration, league_ratings(store.counted_results(), [p.id for p in store.players()]))
         except BaseException:
             shutil.rmtree(target, ignore_errors=True)
             raise
-        result = BestResponseResult(player, exploited, wins_of(side, played.attacker_wins, played.games), played.games, curve)
+        result = BestResponseResult(player, exploited, wins_of(side, played.attacker_wins, played.games), played.games, curve,
+                                    budget.games)
         results.append(result)
         say(f"{result.line(baseline)}; {time.perf_counter() - started:.0f} s")
     return Exploitability(exploited, env_steps, results, baseline)
