@@ -76,16 +76,18 @@ def measure(run_dir: Path, criterion: str) -> tuple[dict[str, tuple[int, int, fl
     _, store = open_run(run_dir)
     try:
         curves, iterations = read_curves(store), store.iteration_rows()
+        learners = [p.name for p in store.players(kind="learner")]
     finally:
         store.close()
     elapsed = dict(zip([row["iteration"] for row in iterations], accumulate(row["wall_seconds"] for row in iterations)))
     run_steps = {row["iteration"]: row["env_steps"] for row in iterations}
-    by_learner: dict[str, list[Curve]] = {}
+    # a learner not yet measured (a run stopped before its first phase) is not strong
+    by_learner: dict[str, list[Curve]] = {name: [] for name in learners}
     for curve in curves:
         by_learner.setdefault(curve.learner.name, []).append(curve)
     found = {}
     for name, learner_curves in by_learner.items():
-        strong = first_strong(criterion, learner_curves)
+        strong = first_strong(criterion, learner_curves) if learner_curves else None
         found[name] = None if strong is None else (strong[0], run_steps[strong[1]], elapsed[strong[1]])
     return found, elapsed[max(elapsed)]
 
