@@ -52,7 +52,6 @@ the seeds, a run directory of another config); 1 a training run or a best respon
 
 from __future__ import annotations
 
-import json
 import shlex
 import subprocess
 import sys
@@ -63,7 +62,6 @@ import numpy as np
 import torch
 
 from envs.scenarios import evaluation_scenarios
-from league.analysis.exploitability import FLAT
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
 from league.cli import cluster_or_exit, command_parser, count, tuning_seeds_error
 from league.config import ConfigError, load_config
@@ -72,6 +70,7 @@ from league.core.players import Player, other_side
 from league.evaluation.engine import play_fixed_games, policies_of
 from league.evaluation.results import test_game_stats
 from league.state.run_dir import RunDirError, open_run, read_config
+from league.studies.exploitation import Exploited, exploited
 from league.studies.runs import speed
 from league.studies.trials import RunFailed, TrainingRun, train_runs
 
@@ -79,7 +78,6 @@ ARMS = ("protocol", "naive", "league", "league-do", "league-do-rm")
 REFERENCE_ARM = "league"  # the arm the others are tested against
 SIDES = ("team", "attacker")
 TARGETS = ("final", "nash")  # what best responses train against: the final snapshot, the side's Nash mixture
-EXPLOITABILITY_DIR = "exploitability"  # in a run directory: the league.exploit --json outputs the study kept
 
 
 def arm_overrides(arm: str, args, seed: int) -> list[str]:
@@ -170,48 +168,10 @@ def cross_play(finals: dict[str, Finals], game, episodes: int) -> dict[tuple[str
     }).attacker_wins.sum()) for x in finals for y in finals}
 
 
-@dataclass(frozen=True)
-class Exploited:
-    """The best responses against one player of one run on the test games, as ``league.exploit --json`` gave them."""
-
-    name: str
-    seeds: list[dict]  # per best response: win_rate, curve_verdict, ...
-    member: dict | None  # the best league member of the other side: player, win_rate (test games)
-
-    @property
-    def mean(self) -> float:
-        return float(np.mean([s["win_rate"] for s in self.seeds]))
-
-    def cells(self) -> list[str]:
-        """Win rates (their mean, each best response's), margin over the best league member, flat curves."""
-        rates = ", ".join(f"{s['win_rate']:.3f}" for s in self.seeds)
-        margin = f"{self.mean - self.member['win_rate']:+.3f} ({self.member['player']})" if self.member else "no member"
-        return [f"{self.mean:.3f} ({rates})" if len(self.seeds) > 1 else rates, margin,
-                f"{sum(s['curve_verdict'] == FLAT for s in self.seeds)}/{len(self.seeds)}"]
-
-
-def run_exploit(argv: list[str]) -> dict:
-    """``python -m league.exploit ARGV`` (with ``--json``) in its own process: its JSON; its progress goes to stderr."""
-    done = subprocess.run([sys.executable, "-m", "league.exploit", *argv], stdout=subprocess.PIPE, text=True, check=True)
-    return json.loads(done.stdout)
-
-
-def exploited(run_dir: Path, name: str, side: str, args) -> Exploited:
-    """``args.br_seeds`` best responses against the player ``name`` of ``side`` in the run: those kept from earlier
-    calls, and the missing ones trained now by ``league.exploit`` (its progress on stderr, its JSON kept)."""
+def exploited_in(run_dir: Path, name: str, side: str, args) -> Exploited:
+    """``args.br_seeds`` best responses against ``name`` of ``side`` (a team's budget against an attacker), kept or new."""
     budget = args.team_br_env_steps if side == "attacker" else args.br_env_steps
-    kept = run_dir / EXPLOITABILITY_DIR / f"{name}-{budget}-steps-{args.episodes}-test-games.json"
-    calls = json.loads(kept.read_text()) if kept.exists() else []
-    missing = args.br_seeds - sum(len(call["seeds"]) for call in calls)
-    if missing > 0:
-        print(f"exploiting {run_dir}: {name}, {missing} best response(s) of {budget:,} env steps", flush=True)
-        calls.append(run_exploit(["--run-dir", str(run_dir), "--player", name, "--env-steps", str(budget),
-                                  "--seeds", str(missing), "--episodes", str(args.episodes), "--games", "test", "--json"]))
-        kept.parent.mkdir(exist_ok=True)
-        partial = kept.with_suffix(".partial")
-        partial.write_text(json.dumps(calls, indent=1))
-        partial.replace(kept)  # whole or not at all: a call killed before this line is trained again, on new seeds
-    return Exploited(name, [s for call in calls for s in call["seeds"]][:args.br_seeds], calls[-1]["best_member"])
+    return exploited(run_dir, name, budget, args.br_seeds, args.episodes)
 
 
 def over_seeds(values: dict[str, dict[int, float]], arm: str, seeds: list[int], arms: list[str]) -> list[str]:
@@ -302,7 +262,7 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str
         for (arm, seed), final in finals.items():
             for target in TARGETS:
                 name = final.players[side].name if target == "final" else f"nash-{side}"
-                found[arm, seed, side, target] = exploited(final.run_dir, name, side, args)
+                found[arm, seed, side, target] = exploited_in(final.run_dir, name, side, args)
     any_run = finals[args.arms[0], args.seeds[0]]
     per_side = args.phases // 2 * args.phase_env_steps
     lines = [

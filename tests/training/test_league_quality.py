@@ -99,7 +99,9 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
     from league.evaluation.engine import play_fixed_games, policies_of
     from league.state.run_dir import open_run
 
-    monkeypatch.setattr(league_quality, "run_exploit", exploit_here)  # a process each costs the test 10 s
+    from league.studies import exploitation
+
+    monkeypatch.setattr(exploitation, "run_exploit", exploit_here)  # a process each costs the test 10 s
     (tmp_path / "tiny.yaml").write_text(TINY)
     out = tmp_path / "study"
     argv = ["--config", str(tmp_path / "tiny.yaml"), "--out", str(out), "--arms", "protocol", "league-do",
