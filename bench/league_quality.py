@@ -7,16 +7,16 @@ arms differing only in whom each side's learner trains against:
 | --- | --- |
 | ``protocol`` | the paper's protocol: the attacker the scripted teams for half the budget, then the team that attacker's final snapshot |
 | ``naive`` | the other side's newest snapshot only, phases in turn (the first attacker phase: the scripted teams) |
-| ``league`` | the config's league: PFSP over the other side's scripted players and snapshots |
+| ``league`` | the config's league: PFSP over the other side's scripted players and snapshots, with the config's exploiters (as shipped: an attacker exploiter in a last phase, against the final team) |
 | ``league-do`` | as ``league``, with PSRO's double-oracle step (``league.double_oracle``): at each phase's end a best response of that phase's side, trained against the other side's Nash mixture, joins the pool |
 | ``league-do-rm`` | as ``league-do``, the best responses against the other side's regret-matching distribution (``meta_solver: regret_matching``) |
 
 Every arm: one attacker (reward method 2), a terminal reward of +-``--terminal-reward`` (both
-sides learn to win), no exploiters, ``--phases`` alternating phases of ``--phase-env-steps``
+sides learn to win), ``--phases`` alternating phases of ``--phase-env-steps``
 (``protocol``: two phases of half the total each), each ending on its budget only, so each
 side's learner samples the same env steps in every arm. The double-oracle best responses
-sample ``--do-env-steps`` each on top of that (one per phase, of that phase's side): the
-page reports them beside the learner's.
+sample ``--do-env-steps`` each on top of that (one per phase, of that phase's side), and the
+league arms' exploiters their own phase's: the page reports both beside the learner's.
 
 Seeds: each arm is trained once per ``--seeds`` seed (``OUT/ARM/seed-S``, its output in
 ``OUT/logs/ARM-seed-S.log``); an arm's runs differ only in their seed. ``--tuning-seeds``
@@ -85,7 +85,7 @@ def arm_overrides(arm: str, args, seed: int) -> list[str]:
     first, then the arm's (which make the comparison, so they win)."""
     common = [
         *args.overrides, "game.attacker_reward=2", f"game.terminal_reward={args.terminal_reward}",
-        "league.attacker_reward_methods=[2]", "league.exploiters=[]", "league.exploiter_phases=all",
+        "league.attacker_reward_methods=[2]",
         "league.double_oracle.env_steps=0", "league.double_oracle.meta_solver=nash",
         f"evaluation.episodes={args.episodes}", f"seed={seed}",
     ]
@@ -93,11 +93,11 @@ def arm_overrides(arm: str, args, seed: int) -> list[str]:
     if arm == "protocol":
         phases = [f"{{learner: attacker, env_steps: {per_side}, opponents: scripted}}",
                   f"{{learner: team, env_steps: {per_side}, opponents: latest}}"]
-        return [*common, "league.mode=protocol", f"league.phases=[{', '.join(phases)}]"]
+        return [*common, "league.mode=protocol", "league.exploiters=[]", "league.exploiter_phases=all", f"league.phases=[{', '.join(phases)}]"]
     if arm == "naive":
         phases = [f"{{learner: {'attacker' if i % 2 == 0 else 'team'}, env_steps: {args.phase_env_steps}, "
                   f"opponents: {'scripted' if i == 0 else 'latest'}}}" for i in range(args.phases)]
-        return [*common, "league.mode=protocol", f"league.phases=[{', '.join(phases)}]"]
+        return [*common, "league.mode=protocol", "league.exploiters=[]", "league.exploiter_phases=all", f"league.phases=[{', '.join(phases)}]"]
     selfplay = [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
                 f"league.phase_env_steps={args.phase_env_steps}", "league.team_phase_env_steps=null",
                 "league.snapshot_win_rate=1.0", f"league.min_phase_episodes={10**9}"]  # a phase ends on its budget only
@@ -117,12 +117,13 @@ def training_run(arm: str, seed: int, args) -> TrainingRun:
 
 @dataclass(frozen=True)
 class Finals:
-    """What one run made: its final player of each side, the scripted players, the double oracle's env steps per side."""
+    """What one run made: its final player of each side, the scripted players, the env steps per side of its
+    double-oracle best responses and exploiters (beside the learner's)."""
 
     run_dir: Path
     players: dict[str, Player]  # side -> its newest snapshot (the attacker: of reward method 2)
     scripted: dict[str, list[Player]]  # side -> its scripted players
-    oracle_steps: dict[str, int]  # side -> env steps its double-oracle best responses trained
+    extra_steps: dict[str, int]  # side -> env steps its double-oracle best responses and exploiters trained
 
     @classmethod
     def of(cls, run_dir: Path) -> "Finals":
@@ -136,7 +137,7 @@ class Finals:
 
         return cls(run_dir, {side: max(of_kind(side, "snapshot"), key=lambda p: p.version) for side in SIDES},
                    {side: of_kind(side, "scripted") for side in SIDES},
-                   {side: sum(p.env_steps for p in of_kind(side, "oracle")) for side in SIDES})
+                   {side: sum(p.env_steps for p in of_kind(side, "oracle") + of_kind(side, "exploiter")) for side in SIDES})
 
 
 def win_cell(wins: int, games: int) -> str:
@@ -269,7 +270,7 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str
         "# Does the league make less exploitable players? (bench/league_quality.py)", "",
         f"Arms {', '.join(args.arms)} from `{args.config}`: method-2 attacker, terminal reward +-{args.terminal_reward:g}, "
         f"{per_side:,} env steps per side for each learner in every arm; the double-oracle arms' best responses "
-        f"{args.do_env_steps:,} env steps each, one after each phase, on top (\"+ DO\": of that side's). Training seeds "
+        f"{args.do_env_steps:,} env steps each, one after each phase, and the league arms' exploiters on top (\"+ DO, exploiters\": of that side's). Training seeds "
         f"{' '.join(map(str, args.seeds))} (settings chosen on seeds {' '.join(map(str, args.tuning_seeds)) or 'none named'}). "
         f"Every figure on {args.episodes} held-out test games per pair (Wilson 95% within a seed). Exploitability: "
         f"{args.br_seeds} best response(s) from scratch per exploited player, {args.br_env_steps:,} env steps against a "
@@ -289,10 +290,10 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str
                          args.episodes) for y in args.arms]
             lines.append(f"| {arm} | {seed} | {final.players[side].name} | " + " | ".join(cells) + " |")
         lines += ["", f"## Exploitability of the final {side}s: best responses' win rate on the test games", "",
-                  "| arm | seed | env steps + DO | final: win rate | margin (member) | flat | "
+                  "| arm | seed | env steps + DO, exploiters | final: win rate | margin (member) | flat | "
                   "Nash mixture: win rate | margin (member) | flat |", "| --- " * 9 + "|"]
         for (arm, seed), final in finals.items():
-            steps = f"{final.players[side].env_steps:,} + {final.oracle_steps[side]:,}"
+            steps = f"{final.players[side].env_steps:,} + {final.extra_steps[side]:,}"
             cells = [c for target in TARGETS for c in found[arm, seed, side, target].cells()]
             lines.append(f"| {arm} | {seed} | {steps} | " + " | ".join(cells) + " |")
             print(lines[-1], flush=True)

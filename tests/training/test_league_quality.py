@@ -46,7 +46,9 @@ def test_every_arm_loads_and_gives_both_sides_the_same_learner_budget(league_qua
     for arm in league_quality.ARMS:
         run = load_config("selfplay_league", league_quality.arm_overrides(arm, ARGS, 1))
         assert (run.game.attacker_reward, run.game.terminal_reward, run.seed) == (2, 30.0, 1)
-        assert run.league.attacker_reward_methods == [2] and run.league.exploiters == []
+        assert run.league.attacker_reward_methods == [2]
+        # The league arms keep the config's exploiters (as shipped); the others have none.
+        assert run.league.exploiters == (["attacker"] if arm.startswith("league") else []), arm
         assert side_budgets(run) == {"attacker": 100_000, "team": 100_000}, arm
         if run.league.mode == "selfplay":  # phases end on their budget, never on a win rate
             assert run.league.min_phase_episodes > 10**6 and run.league.pfsp == "squared"
@@ -149,7 +151,7 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
     # The arms' finals meet on the test games: two scripted players as finals, whose games differ from dev to test.
     finals = league_quality.Finals.of(out / "protocol" / "seed-5")
     scripted = league_quality.Finals(finals.run_dir, {side: finals.scripted[side][0] for side in ("attacker", "team")},
-                                     finals.scripted, finals.oracle_steps)
+                                     finals.scripted, finals.extra_steps)
     lineup = {**policies_of(scripted.players["attacker"], None), **policies_of(scripted.players["team"], None)}
     by_hand = {games: int(play_fixed_games(run.game, evaluation_scenarios(run.game.scenario, 12, games), lineup)
                           .attacker_wins.sum()) for games in ("dev", "test")}
