@@ -3,30 +3,21 @@ arms trains, exploits the final players and the Nash mixtures on the test games,
 everything when run again."""
 
 import argparse
-import contextlib
-import importlib.util
-import io
 import json
-import sys
-from pathlib import Path
 
 import pytest
 
 from league.config import load_config
+from tests.training.bench_scripts import bench_module, exploit_here
 
-SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "league_quality.py"
 ARGS = argparse.Namespace(terminal_reward=30.0, episodes=100, phases=4, phase_env_steps=50_000, do_env_steps=20_000,
                           overrides=[], config="selfplay_league")
 
 
 @pytest.fixture(scope="module")
 def league_quality():
-    spec = importlib.util.spec_from_file_location("league_quality", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up there
-    spec.loader.exec_module(module)
-    yield module
-    del sys.modules[spec.name]
+    with bench_module("league_quality") as module:
+        yield module
 
 
 def side_budgets(run) -> dict[str, int]:
@@ -83,16 +74,6 @@ ppo: {train_batch_size: 300, minibatch_size: 100, num_epochs: 1, hidden: [16]}
 resources: {num_cpus: 1, num_env_runners: 0, num_envs_per_env_runner: 4}
 evaluation: {workers: 0, every_iterations: 0, curve_every_env_steps: 0, curve_episodes: 8}
 """
-
-
-def exploit_here(argv):
-    """``league.exploit`` in this process, on the test module's Ray instance: what a study's own process would print."""
-    from league import exploit
-
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        assert exploit.main(argv) == 0
-    return json.loads(out.getvalue())
 
 
 def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_all_when_run_again(
