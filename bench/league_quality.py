@@ -90,14 +90,15 @@ def arm_overrides(arm: str, args, seed: int) -> list[str]:
         f"evaluation.episodes={args.episodes}", f"seed={seed}",
     ]
     per_side = args.phases // 2 * args.phase_env_steps
+    protocol_mode = ["league.mode=protocol", "league.exploiters=[]", "league.exploiter_phases=all"]  # exploiters: self-play only
     if arm == "protocol":
         phases = [f"{{learner: attacker, env_steps: {per_side}, opponents: scripted}}",
                   f"{{learner: team, env_steps: {per_side}, opponents: latest}}"]
-        return [*common, "league.mode=protocol", "league.exploiters=[]", "league.exploiter_phases=all", f"league.phases=[{', '.join(phases)}]"]
+        return [*common, *protocol_mode, f"league.phases=[{', '.join(phases)}]"]
     if arm == "naive":
         phases = [f"{{learner: {'attacker' if i % 2 == 0 else 'team'}, env_steps: {args.phase_env_steps}, "
                   f"opponents: {'scripted' if i == 0 else 'latest'}}}" for i in range(args.phases)]
-        return [*common, "league.mode=protocol", "league.exploiters=[]", "league.exploiter_phases=all", f"league.phases=[{', '.join(phases)}]"]
+        return [*common, *protocol_mode, f"league.phases=[{', '.join(phases)}]"]
     selfplay = [*common, "league.mode=selfplay", f"league.selfplay_phases={args.phases}",
                 f"league.phase_env_steps={args.phase_env_steps}", "league.team_phase_env_steps=null",
                 "league.snapshot_win_rate=1.0", f"league.min_phase_episodes={10**9}"]  # a phase ends on its budget only
