@@ -3,7 +3,8 @@
 * ``report.md`` with PNGs: the Table 1 analogue next to the paper's numbers, the payoff
   matrix and its meta-game (Nash mixtures and value, ``league.analysis.nash``), every snapshot against
   the scripted players of the other side by version (``league.analysis.generations``), the exploitability of
-  the players ``league.exploit`` trained best responses against, ratings over training (one panel per side) and a table of every player's
+  the players and mixtures ``league.exploit`` trained best responses against (with the Nash mixtures' curve over
+  the phases, ``exploitability.png``), ratings over training (one panel per side) and a table of every player's
   Elo and Nash-averaged rating, learner win rates and episode returns in the iterations their side learned
   (phases shaded; a line breaks between a learner's phases), and 3D trajectories of a won and a lost game
   for each side (the analogues of the paper's Fig. 3 and Fig. 4), and the learning curves

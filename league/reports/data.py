@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from league.analysis.exploitability import Exploitability, exploitability
+from league.analysis.exploitability import Exploitability, run_exploitability
 from league.analysis.generations import GenerationLine, generation_lines
 from league.analysis.nash import MetaGame, meta_game, meta_game_players
 from league.analysis.statistics import wilson_interval
@@ -153,7 +153,7 @@ def gather(store: LeagueStore, run: RunConfig, trajectories: Trajectories | None
         phases=phases_of(iterations), episodes=trajectories.episodes, missing_episodes=trajectories.missing,
         summary=summary,
         meta=meta_game(attackers, teams, payoff),
-        exploitability=exploitability(players, store.newest_evaluation_rows()),
+        exploitability=run_exploitability(store),
         generations=generations, missing_generations=missing_generations,
         evaluated_iteration=store.get_meta("evaluated_iteration"),
         curves=read_curves(store), by_class=by_class, classes=classes,

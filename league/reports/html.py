@@ -19,10 +19,12 @@ from plotly.subplots import make_subplots
 
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER, Outcome
 from envs.render import COLOURS
-from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
+from league.analysis.exploitability import (
+    CURVE_NOTE, CURVE_TITLE, EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, Exploitability, exploitability_curves,
+)
 from league.analysis.generations import PANEL_TITLES, SIDES, GenerationLine
 from league.analysis.nash import GROUP_HEADER, GROUP_NOTE, GROUP_TITLE, META_GAME_NOTE, MIXTURE_HEADER, MIXTURE_TITLE
-from league.core.players import POOL_KINDS
+from league.core.players import POOL_KINDS, other_side
 from league.evaluation.trajectories import Episode
 from league.reports.data import (
     CLASS_RATES_NOTE,
@@ -276,11 +278,35 @@ def class_rates_html(data: ReportData) -> list[str]:
     return [f"<p>{html.escape(CLASS_RATES_NOTE)}</p>", html_table(*table)]
 
 
+def exploitability_figure(curves: dict[tuple[str, str, int], list[Exploitability]]) -> go.Figure:
+    """``league.analysis.exploitability.exploitability_curves`` (as ``plots.exploitability_plot``)."""
+    fig = go.Figure()
+    for (side, games, budget), items in sorted(curves.items()):
+        x = [e.exploited.iteration for e in items]
+        bounds = [e.bounds() for e in items]
+        colour = SIDE_COLOURS[other_side(side)]
+        fig.add_trace(go.Scatter(
+            x=x, y=[e.mean for e in items], mode="lines+markers", line_color=colour,
+            name=f"best responses against nash-{side}@K ({budget:,} env steps, {games} games)",
+            error_y={"type": "data", "symmetric": False, "array": [high - e.mean for e, (_, high) in zip(items, bounds)],
+                     "arrayminus": [e.mean - low for e, (low, _) in zip(items, bounds)]},
+        ))
+        members = [(k, e.baseline.member_rate) for k, e in zip(x, items) if e.baseline.member is not None]
+        if members:
+            fig.add_trace(go.Scatter(x=[k for k, _ in members], y=[r for _, r in members], mode="lines+markers",
+                                     line={"color": colour, "dash": "dash"}, name=f"best league {other_side(side)} at K"))
+    fig.update_layout(title=CURVE_TITLE, xaxis_title="iteration K", yaxis_title="win rate against the mixture",
+                      yaxis_range=[0, 1], height=420)
+    return fig
+
+
 def exploitability_html(data: ReportData) -> list[str]:
     if not data.exploitability:
         return [f"<p>{html.escape(NO_EXPLOITABILITY)}</p>"]
+    curves = exploitability_curves(data.exploitability)
     return [f"<p>{html.escape(EXPLOITABILITY_NOTE)}</p>",
-            html_table(EXPLOITABILITY_HEADER, [e.row() for e in data.exploitability])]
+            html_table(EXPLOITABILITY_HEADER, [e.row() for e in data.exploitability]),
+            *([f"<p>{html.escape(CURVE_NOTE)}</p>", figure_div(exploitability_figure(curves), "exploitability")] if curves else [])]
 
 
 def write(data: ReportData, out: Path) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from envs.render import plot_episode
-from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE
+from league.analysis.exploitability import CURVE_NOTE, EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability_curves
 from league.analysis.nash import format_meta_game
 from league.reports.data import (
     CLASS_RATES_NOTE,
@@ -22,13 +22,20 @@ from league.reports.data import (
     rating_rows,
     table_one_rows,
 )
-from league.reports.plots import DPI, generations_plot, heat_map, line_plot, plot_run_curves, ratings_plot
+from league.reports.plots import (
+    DPI, exploitability_plot, generations_plot, heat_map, line_plot, plot_run_curves, ratings_plot,
+)
 
 
-def exploitability_markdown(data: ReportData) -> str:
+def exploitability_markdown(data: ReportData, out: Path) -> str:
     if not data.exploitability:
         return NO_EXPLOITABILITY + "\n"
-    return EXPLOITABILITY_NOTE + "\n\n" + markdown_table(EXPLOITABILITY_HEADER, [e.row() for e in data.exploitability])
+    text = EXPLOITABILITY_NOTE + "\n\n" + markdown_table(EXPLOITABILITY_HEADER, [e.row() for e in data.exploitability])
+    curves = exploitability_curves(data.exploitability)
+    if curves:
+        exploitability_plot(curves, out / "exploitability.png")
+        text += f"\n{CURVE_NOTE}\n\n![exploitability over the phases](exploitability.png)\n"
+    return text
 
 
 def class_section(data: ReportData) -> list[str]:
@@ -69,7 +76,7 @@ def write_markdown(data: ReportData, out: Path) -> Path:
         "## Meta-game", "", format_meta_game(data.meta, NO_META_GAME),
         "## Progress over generations", "", GENERATIONS_NOTE, "", "![generations](generations.png)", "",
         *data.missing_generations, "",
-        "## Exploitability", "", exploitability_markdown(data),
+        "## Exploitability", "", exploitability_markdown(data, out),
         "## Ratings", "", "![ratings](ratings.png)", "",
         RATINGS_NOTE, "",
         markdown_table(RATINGS_HEADER, rating_rows(data)),

@@ -16,9 +16,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from league.analysis.exploitability import CURVE_TITLE, Exploitability
 from league.analysis.generations import PANEL_TITLES, SIDES, GenerationLine
 from league.config import RunConfig
-from league.core.players import POOL_KINDS, Player
+from league.core.players import POOL_KINDS, Player, other_side
 from league.evaluation.learning_curves import Curve, GameStats, read_curves, scripted_references
 from league.reports.data import Phase, ReportData, Series, payoff_grid
 
@@ -99,6 +100,29 @@ def line_plot(series: Series, phases: list[Phase], ylabel: str, title: str, out:
     ax.set_title(title)
     handles, _ = ax.get_legend_handles_labels()
     ax.legend(handles=handles + phase_legend_handles(), fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig.tight_layout()
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+
+
+def exploitability_plot(curves: dict[tuple[str, str, int], list[Exploitability]], out: Path) -> None:
+    """``league.analysis.exploitability.exploitability_curves``: each mixture's best responses over the phases."""
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    for (side, games, budget), items in sorted(curves.items()):
+        x = [e.exploited.iteration for e in items]
+        low, high = np.array([e.bounds() for e in items]).T
+        mean = np.array([e.mean for e in items])
+        colour = SIDE_COLOURS[other_side(side)]
+        ax.errorbar(x, mean, yerr=[mean - low, high - mean], color=colour, marker="o", capsize=3,
+                    label=f"best responses against nash-{side}@K ({budget:,} env steps, {games} games)")
+        members = [(k, e.baseline.member_rate) for k, e in zip(x, items) if e.baseline.member is not None]
+        if members:
+            ax.plot(*zip(*members), color=colour, ls="--", marker=".", label=f"best league {other_side(side)} at K")
+    ax.set_xlabel("iteration K")
+    ax.set_ylabel("win rate against the mixture")
+    ax.set_ylim(0, 1)
+    ax.set_title(CURVE_TITLE)
+    ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(out, dpi=DPI)
     plt.close(fig)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from rich.table import Table
 
-from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, exploitability
+from league.analysis.exploitability import EXPLOITABILITY_HEADER, EXPLOITABILITY_NOTE, run_exploitability
 from league.analysis.nash import (
     GROUP_HEADER, GROUP_NOTE, GROUP_TITLE, META_GAME_NOTE, MIXTURE_HEADER, MIXTURE_TITLE, league_meta_game,
 )
@@ -65,7 +65,7 @@ def nash_section(store: LeagueStore) -> list:
 
 def exploitability_section(store: LeagueStore) -> list:
     """Each exploited player's best responses (``league.exploit``): their win rates, mean and interval over seeds."""
-    found = exploitability(store.players(), store.newest_evaluation_rows())
+    found = run_exploitability(store)
     if not found:
         return []
     table = Table(title="exploitability (best responses)", caption=EXPLOITABILITY_NOTE)
@@ -113,6 +113,7 @@ def status_json(run_dir: Path, store: LeagueStore, state: str, source: str | Non
         "meta_game": meta.as_json() if meta is not None else None,
         "mixtures": [mixture.as_json() for mixture in final_mixtures(store)],  # nash-attacker, nash-team
         "no_meta_game": why_not if meta is None else None,  # why ``meta_game`` is null
+        "exploitability": [item.as_json() for item in run_exploitability(store)],  # league.exploit's best responses
     }
 
 

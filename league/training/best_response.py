@@ -49,7 +49,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from league.analysis.exploitability import (
-    Baseline, BestResponseResult, CurvePoint, Exploitability, league_baseline, mixture_baseline,
+    MIXTURE_BEST_RESPONSES, Baseline, BestResponseResult, CurvePoint, Exploitability, league_baseline, mixture_baseline,
+    on_test_games,
 )
 from league.config import RunConfig
 from league.core.league import League, Records, Weights
@@ -67,7 +68,6 @@ DEFAULT_SEEDS = 3
 TERMINAL_REWARD = 30.0
 SCRATCH_PREFIX = ".exploit-"
 CURVE_POINTS = 6  # learning-curve points over a best response's budget
-MIXTURE_BEST_RESPONSES = "mixture_best_responses"  # the store's meta key: best responses against mixture players
 
 
 def best_response_config(run: RunConfig, exploited: Contestant, seed: int, env_steps: int, from_prior: bool = False) -> RunConfig:
@@ -288,7 +288,7 @@ class Budget:
     games: str = "dev"  # which fixed games: the dev games, or the held-out test games (a study's)
 
 
-def on_test_games(baseline: Baseline, run: RunConfig, run_dir: Path, store: LeagueStore, episodes: int) -> Baseline:
+def played_on_test_games(baseline: Baseline, run: RunConfig, run_dir: Path, store: LeagueStore, episodes: int) -> Baseline:
     """``baseline`` with its member, chosen on the dev games, measured against the exploited player (a mixture:
     each of its members, by their weights) on the first ``episodes`` held-out test games, played and recorded
     where the store has none: the best of many members on the dev games is a little lucky there, and a margin
@@ -296,14 +296,10 @@ def on_test_games(baseline: Baseline, run: RunConfig, run_dir: Path, store: Leag
     from league.evaluation.results import test_game_stats
 
     member, exploited = baseline.member, baseline.exploited
-    if member is None:
-        return replace(baseline, game_set="test")
-    opponents, weights = (exploited.members, exploited.weights) if isinstance(exploited, Mixture) else ((exploited,), (1.0,))
-    pairs = [(member, o) if member.side == "attacker" else (o, member) for o in opponents]
-    stats = test_game_stats(store, run, run_dir, pairs, episodes)
-    rate = sum(w * wins_of(member.side, stats[a.id, t.id].attacker_wins, episodes) / episodes
-               for w, (a, t) in zip(weights, pairs))
-    return replace(baseline, member_wins=rate * episodes, member_games=episodes, game_set="test")
+    if member is not None:
+        opponents = exploited.members if isinstance(exploited, Mixture) else (exploited,)
+        test_game_stats(store, run, run_dir, [(member, o) if member.side == "attacker" else (o, member) for o in opponents], episodes)
+    return on_test_games(baseline, store.newest_evaluation_rows("test"))
 
 
 def train_best_responses(
@@ -321,7 +317,7 @@ def train_best_responses(
     baseline = (mixture_baseline(exploited, store.players(), evaluated) if isinstance(exploited, Mixture)
                 else league_baseline(exploited, store.players(), evaluated))
     if budget.games == "test":
-        baseline = on_test_games(baseline, run, run_dir, store, episodes)
+        baseline = played_on_test_games(baseline, run, run_dir, store, episodes)
     say(baseline.line())
     results = []
     for seed in seeds:
@@ -347,6 +343,7 @@ def train_best_responses(
                         "player": player.name, "mixture": exploited.name, "seed": seed, "budget": env_steps,
                         "from_prior": from_prior, "wins": wins_of(side, played.attacker_wins, played.games),
                         "games": played.games, "game_set": budget.games, "mixture_seed": exploited.seed,
+                        "iteration": exploited.iteration,
                     }])
                 else:
                     # the provisional player's id becomes the new row's

@@ -322,10 +322,77 @@ def test_exploit_trains_a_best_response_against_a_mixture(ray_instance, mixed_ru
         br = {p.name: p for p in store.players()}[record["player"]]
         assert (br.kind, br.side, br.parent, br.seed) == ("best_response", "attacker", None, 0)
         assert (record["mixture"], record["games"], record["wins"]) == ("nash-team", 10, found["seeds"][0]["wins"])
+        assert record["iteration"] == 4  # the mixture it was: nash-team@4, whatever nash-team becomes if the run goes on
         # A second call takes the next seed against that mixture.
         assert best_response.next_seeds(store.players(), store_mixture(store, "nash-team"), 2, store) == [1, 2]
     finally:
         store.close()
+    # league.status reads it back from the store: the same result against the same mixture.
+    assert status.main(["--run-dir", str(run_dir), "--json"]) == 0
+    [shown] = json.loads(capsys.readouterr().out)["exploitability"]
+    assert (shown["exploited"], shown["game_set"], shown["seeds"][0]["wins"]) == ("nash-team", "dev", found["seeds"][0]["wins"])
+    assert shown["best_member"] == found["best_member"]
     for bad, named in BAD_NAMES:
         assert exploit.main(args + [bad]) == 2
         one_line_error(capsys, named)
+
+
+def test_status_and_report_show_the_mixtures_exploitability_on_the_test_games_over_the_phases(mixed_run, tmp_path, capsys):
+    """What ``league.exploit --player nash-team@K --games test`` records (a best-response player, its result in the
+    meta table, the best league member's test-game rows), read back: each mixture's test-game win rates with their
+    interval, the margin over the best member's test-game rate, and the curve over K in the report."""
+    import shutil
+
+    from league.analysis.exploitability import MIXTURE_BEST_RESPONSES, exploitability_curves, mixture_baseline
+    from league.analysis.statistics import mean_interval
+    from league.config import saved_run_config
+    from league.core.players import NewPlayer
+    from league.reports.data import gather
+    from league.reports.html import exploitability_html
+    from league.reports.markdown import exploitability_markdown
+
+    run_dir = tmp_path / "run"
+    shutil.copytree(mixed_run, run_dir)
+    store = LeagueStore(run_dir)
+    try:
+        players = store.players()
+        mixtures = {k: store_mixture(store, f"nash-team@{k}") for k in (0, 4)}
+        members = {k: mixture_baseline(m, players, store.newest_evaluation_rows()).member for k, m in mixtures.items()}
+        # On the test games each attacker wins its own share of 100 games against every team, none its dev-game rate.
+        test_wins = {a.id: 21 + 10 * i for i, a in enumerate(p for p in players if p.side == "attacker")}
+        rows = [OutcomeCount(a, t.id, outcome, count) for a, wins in test_wins.items() for t in players if t.side == "team"
+                for outcome, count in (("captured", wins), ("terminal_reached", 100 - wins))]
+        records = []
+        with store.transaction():
+            store.record_evaluation(4, rows, "test")
+            for version, (k, wins) in enumerate(((0, 70), (4, 45), (4, 55))):
+                br = store.add_player(4, NewPlayer("attacker", "best_response", version, 2, env_steps=600, seed=version,
+                                                   env_step_budget=600, from_prior=False))
+                records.append({"player": br.name, "mixture": f"nash-team@{k}", "seed": version, "budget": 600,
+                                "from_prior": False, "wins": wins, "games": 100, "game_set": "test", "mixture_seed": 0,
+                                "iteration": k})
+            store.set_meta(MIXTURE_BEST_RESPONSES, records)
+        data = gather(store, saved_run_config(run_dir))
+    finally:
+        store.close()
+
+    assert status.main(["--run-dir", str(run_dir), "--json"]) == 0
+    shown = {e["exploited"]: e for e in json.loads(capsys.readouterr().out)["exploitability"]}
+    assert set(shown) == {"nash-team@0", "nash-team@4"}
+    early, late = shown["nash-team@0"], shown["nash-team@4"]
+    assert early["game_set"] == late["game_set"] == "test"
+    assert [s["win_rate"] for s in early["seeds"]] == [0.7] and early["win_rate"]["student_t_95_over_seeds"] is None
+    assert late["win_rate"]["mean"] == pytest.approx(0.5)
+    assert late["win_rate"]["student_t_95_over_seeds"] == pytest.approx(list(mean_interval([0.45, 0.55])))
+    # the members chosen on the dev games, their rates and the margins over them the test games'
+    for shown_k, k in ((early, 0), (late, 4)):
+        member = shown_k["best_member"]
+        rate = test_wins[members[k].id] / 100
+        assert (member["player"], member["win_rate"], member["game_set"]) == (members[k].name, pytest.approx(rate), "test")
+        assert member["margin"]["mean"] == pytest.approx(shown_k["win_rate"]["mean"] - rate)
+
+    [(key, curve)] = exploitability_curves(data.exploitability).items()
+    assert key == ("team", "test", 600) and [e.exploited.iteration for e in curve] == [0, 4]
+    assert "![exploitability over the phases](exploitability.png)" in exploitability_markdown(data, tmp_path)
+    assert (tmp_path / "exploitability.png").stat().st_size > 0
+    assert any("id='exploitability'" in part or 'id="exploitability"' in part for part in exploitability_html(data))
