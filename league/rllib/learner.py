@@ -11,7 +11,8 @@ import torch
 from league.rllib import compat
 from league.rllib.flat_adam import FlatAdam
 from league.rllib.modules import ActorCriticModule
-from league.rllib.ppo_loss import LossRows, PPOCoefficients, loss_stats, ppo_loss
+from league.rllib.algorithm import SAMPLE_AHEAD
+from league.rllib.ppo_loss import LossRows, PPOCoefficients, anchor_at_learner, loss_stats, ppo_loss
 from league.rollout.train_batch import minibatch_rows
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
 from ray.rllib.core.columns import Columns
@@ -148,6 +149,9 @@ class LeaguePPOLearner(PPOTorchLearner):
         inputs = {m: LossRows(batch.policy_batches[m], self.device) for m in modules}
         coefficients = {m: self._ppo_coefficients(m) for m in modules}
         bf16 = {m: self.module[m].settings.bf16 and compat.native_bf16() for m in modules}  # `PPOSettings.bf16`
+        if self.config.learner_config_dict.get(SAMPLE_AHEAD):  # sampled by the policy one update older
+            for m in modules:
+                anchor_at_learner(inputs[m], self.module[m], bf16[m])
         trained = [p for m in modules for _, o in self.get_optimizers_for_module(m) for g in o.param_groups for p in g["params"]]
         for m in modules:
             self.module[m].train()  # as RLlib's forward_train

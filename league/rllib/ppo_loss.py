@@ -77,6 +77,28 @@ class LossRows:
         return {key: picked[:, where] for key, where in self.columns.items()}
 
 
+def anchor_at_learner(rows: LossRows, module: Any, bf16: bool = False) -> None:
+    """Decoupled PPO (Hilton et al. 2021, "Batch size-invariance for policy optimization") for rows sampled by
+    an older policy than the learner's (``resources.sample_ahead``: one update older). PPO's clip keeps the new
+    policy near the one that sampled, which the learner has already left by an update: its room to move
+    shrinks, and on the flagship's attacker phase entropy fell half as fast. So the clip and the KL term are
+    anchored at the learner's policy as the update starts (``ACTION_LOGP``, ``ACTION_DIST_INPUTS`` replaced by
+    its), and each row's advantage weighted by that policy's probability over the sampling policy's, the
+    importance weight that keeps the objective's expectation the learner's (not clipped: a lag of one update
+    keeps it near 1)."""
+    columns = rows.columns
+    with torch.no_grad(), torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+        dist_inputs = module.action_dist_inputs(rows.matrix[:, columns[Columns.OBS]]).float()
+    loc, log_std = dist_inputs.chunk(2, dim=-1)
+    scale = log_std.exp()
+    actions = rows.matrix[:, columns[Columns.ACTIONS]]
+    logp = (-((actions - loc) ** 2) / (2 * scale**2) - scale.log() - LOG_SQRT_2PI).sum(-1)
+    weight = torch.exp(logp - rows.matrix[:, columns[Columns.ACTION_LOGP]])
+    rows.matrix[:, columns[Postprocessing.ADVANTAGES]] *= weight
+    rows.matrix[:, columns[Columns.ACTION_LOGP]] = logp
+    rows.matrix[:, columns[Columns.ACTION_DIST_INPUTS]] = dist_inputs
+
+
 @dataclass(frozen=True)
 class PPOCoefficients:
     """One module's loss settings for one update (``entropy_coeff`` and ``kl_coeff`` are

@@ -17,6 +17,7 @@ from league.core.players import Player
 from league.rllib import bridge
 from league.state.run_dir import run_differences
 from ray.rllib.core.columns import Columns
+from ray.rllib.evaluation.postprocessing import Postprocessing
 from tests.training.test_same_seed import RUN_TIMEOUT, TINY_SMOKE, finish, iterations, league
 
 AHEAD = ["--set", "resources.sample_ahead=true", "--set", "resources.num_env_runners=2"]
@@ -132,3 +133,41 @@ def test_a_phase_end_drops_the_batch_sampled_ahead(algo_and_run):
     assert all(np.array_equal(before[key], after[key]) for key in before), "a batch of the old phase was learned"
     assert bridge.batch_sampled_ahead(algo) is not None  # the new phase's first batch waits
 
+
+
+def test_a_batch_sampled_one_update_ago_is_clipped_around_the_learners_policy(algo_and_run, monkeypatch):
+    # Decoupled PPO: the loss's "old" policy is the learner's as the update starts, not the one an update older
+    # that sampled; each row's advantage weighted by their probability ratio (``ppo_loss.anchor_at_learner``).
+    from league.rllib import learner as learner_module
+    from league.rollout.train_batch import standardized
+
+    algo, run = algo_and_run
+    bridge.begin_iteration(algo, run.seed, 6)  # learns the batch the phase's end left (sampled by this very learner)
+    algo.train()
+    [waiting] = bridge.batch_sampled_ahead(algo)["parts"]  # sampled before the update above
+    waiting = waiting[ATTACKER.name]
+    seen = []
+    original = learner_module.ppo_loss
+
+    def recording(module, batch, c, bf16=False):
+        if not seen:  # the first minibatch, before any gradient step: the learner as the update starts
+            with torch.no_grad():
+                seen.append((module.action_dist_inputs(batch[Columns.OBS]), {k: v.clone() for k, v in batch.items()}))
+        return original(module, batch, c, bf16)
+
+    monkeypatch.setattr(learner_module, "ppo_loss", recording)
+    bridge.begin_iteration(algo, run.seed, 7)
+    algo.train()
+    [(learner_now, batch)] = seen
+    rows = len(learner_now)  # the first minibatch: the batch's first rows (one epoch, no shuffle)
+    assert np.array_equal(batch[Columns.OBS].numpy(), waiting[Columns.OBS][:rows])
+    sampler = torch.from_numpy(waiting[Columns.ACTION_DIST_INPUTS][:rows])
+    assert not torch.allclose(sampler, learner_now, atol=1e-4)  # the learner has moved since it sampled
+    torch.testing.assert_close(batch[Columns.ACTION_DIST_INPUTS], learner_now)
+    loc, log_std = learner_now.chunk(2, dim=-1)
+    logp = torch.distributions.Normal(loc, log_std.exp()).log_prob(batch[Columns.ACTIONS]).sum(-1)
+    # float32 log-densities of a few units: 1e-5 is a few ulps of their sum
+    torch.testing.assert_close(batch[Columns.ACTION_LOGP], logp, atol=1e-5, rtol=0)
+    weight = torch.exp(logp - torch.from_numpy(waiting[Columns.ACTION_LOGP][:rows]))
+    advantages = torch.from_numpy(standardized(waiting[Postprocessing.ADVANTAGES]).astype(np.float32)[:rows])
+    torch.testing.assert_close(batch[Postprocessing.ADVANTAGES], advantages * weight, atol=1e-5, rtol=1e-5)
