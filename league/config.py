@@ -154,7 +154,8 @@ class Resources(Strict):
     given to that process, at least 1."""
     sample_ahead: bool = False
     """The env runners sample each iteration's batch while the driver's learner updates on the last one, by the policy
-    one update old (as APPO; ``league.rllib.algorithm.LeaguePPO.step_ahead``). Needs ``resources.num_env_runners`` >= 1
+    one update old (as APPO; ``league.rllib.algorithm.LeaguePPO.step_ahead``), the clip anchored at the learner's own
+    policy (decoupled PPO). Needs ``resources.num_env_runners`` >= 1
     and ``resources.sampler: fast``."""
 
     def threads_for(self, cpus: float) -> int:

@@ -11,6 +11,11 @@ lag means for the league:
   see every game in the iteration it was played. Only the Learner runs one batch behind: the
   policy whose games iteration k counts is the learner after k - 2 updates, and a learning-curve
   point or a snapshot is of the learner that has not yet learned the last batch.
+* The Learner clips each update around its own policy as the update starts, not around the
+  policy one update older that sampled, and weights each row by their probability ratio
+  (decoupled PPO, ``league.rllib.ppo_loss.anchor_at_learner``): with PPO's clip anchored at
+  the sampler the learner had less room each update and learned less per env step
+  (docs/results/time-to-strength.md, "Sampling ahead").
 * A phase's end drops the batch sampled ahead (``bridge.restart_games``, with the games in
   flight): its games count for the phase that played them, but no learner learns from them,
   the old phase's learner (its snapshot is the learner as it is) nor the new phase's. A phase
