@@ -69,10 +69,10 @@ from league.core.payoff import wins_of
 from league.core.players import Player, other_side
 from league.evaluation.engine import play_fixed_games, policies_of
 from league.evaluation.results import test_game_stats
-from league.state.run_dir import RunDirError, open_run, read_config
+from league.state.run_dir import open_run, read_config
 from league.studies.exploitation import Exploited, exploited
 from league.studies.runs import speed
-from league.studies.trials import RunFailed, TrainingRun, train_runs
+from league.studies.trials import TrainingRun, training_exit_code
 
 ARMS = ("protocol", "naive", "league", "league-do", "league-do-rm")
 REFERENCE_ARM = "league"  # the arm the others are tested against
@@ -231,14 +231,8 @@ def main(argv: list[str] | None = None) -> int:
         args.address = cluster_or_exit(args.address)
     torch.set_num_threads(1)  # the test games are played in this process, one pair at a time
     runs = {(arm, seed): training_run(arm, seed, args) for arm in args.arms for seed in args.seeds}
-    try:
-        train_runs(list(runs.values()), args.out, args.jobs, args.cpus_per_run, args.address)
-    except RunDirError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    except RunFailed as err:
-        print(f"error: {err}; run this command again to resume", file=sys.stderr)
-        return 1
+    if code := training_exit_code(list(runs.values()), args.out, args.jobs, args.cpus_per_run, args.address):
+        return code
     try:
         page = measure(args, {key: run.run_dir for key, run in runs.items()}, argv if argv is not None else sys.argv[1:])
     except subprocess.CalledProcessError as err:

@@ -41,9 +41,8 @@ import time
 from pathlib import Path
 
 from league.cli import cluster_or_exit, command_parser
-from league.state.run_dir import RunDirError
 from league.studies.table_one import Budget, Job, phases_override, table, training_run
-from league.studies.trials import RunFailed, train_runs
+from league.studies.trials import training_exit_code
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = command_parser(
@@ -94,14 +93,8 @@ def main(argv: list[str] | None = None) -> int:
                     jobs.append(Job(variant, budget, method, seed, run_dir, (*overrides, *args.overrides)))
     logs = args.out / "logs"
     runs = [training_run(j, logs / f"{j.variant}-{j.budget.label}-method{j.method}-seed{j.seed}.log") for j in jobs]
-    try:
-        train_runs(runs, args.out, args.jobs, args.cpus_per_run, args.address)
-    except RunDirError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    except RunFailed as err:
-        print(f"error: {err}; run this command again to resume", file=sys.stderr)
-        return 1
+    if code := training_exit_code(runs, args.out, args.jobs, args.cpus_per_run, args.address):
+        return code
     wall = time.perf_counter() - started
     from league.studies.seed_curves import study
 

@@ -35,10 +35,9 @@ import torch
 
 from league.cli import cluster_or_exit, command_parser, count, tuning_seeds_error
 from league.config import ConfigError, load_config
-from league.state.run_dir import RunDirError
 from league.studies.beats_scripted import measure_on_test_games, table
 from league.studies.runs import speed
-from league.studies.trials import RunFailed, TrainingRun, train_runs
+from league.studies.trials import TrainingRun, training_exit_code
 
 
 def study_run(out: Path, config: str, seed: int, overrides: list[str]) -> TrainingRun:
@@ -84,14 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(1)  # the test games are played in this process, one pair at a time
     started = time.monotonic()
     runs = {(config, seed): study_run(args.out, config, seed, args.overrides) for config in args.config for seed in args.seeds}
-    try:
-        train_runs(list(runs.values()), args.out, args.jobs, args.cpus_per_run, args.address)
-    except RunDirError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    except RunFailed as err:
-        print(f"error: {err}; run again to resume", file=sys.stderr)
-        return 1
+    if code := training_exit_code(list(runs.values()), args.out, args.jobs, args.cpus_per_run, args.address):
+        return code
     sections = []
     for config in args.config:
         arm = Path(config).stem

@@ -223,6 +223,21 @@ def train_runs(runs: list[TrainingRun], out: Path, jobs: int | None = None, cpus
             ray.shutdown()
 
 
+def training_exit_code(runs: list[TrainingRun], out: Path, jobs: int | None = None, cpus_per_run: float = 2.0,
+                       address: str | None = None) -> int:
+    """``train_runs`` for a command: 0 every run finished; 2 a run directory it cannot use, 1 a run that failed
+    or was stopped (the same command again resumes it), each with one line on stderr."""
+    try:
+        train_runs(runs, out, jobs, cpus_per_run, address)
+    except RunDirError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except RunFailed as err:
+        print(f"error: {err}; run this command again to resume", file=sys.stderr)
+        return 1
+    return 0
+
+
 @contextmanager
 def quiet_tune() -> Iterator[None]:
     """Tune's console output off meanwhile (``TUNE_ENVIRONMENT``, read by Tune in this process and
