@@ -26,9 +26,10 @@ names the seeds that chose the config's settings: printed on the page, refused a
 Measured on the held-out test games (``--episodes`` of them, ``envs.scenarios``), which no
 training, curve or tuning played:
 
-1. each run's final player of each side of ``--sides`` against every scripted player of the
-   other side (recorded in the run's store, source ``test``) and against every arm's final
-   player of the other side of the same training seed: win rates with Wilson 95% intervals;
+1. each run's final player of each side against every scripted player of the other side
+   (recorded in the run's store, source ``test``) and against every arm's final player of the
+   other side of the same training seed: win rates with Wilson 95% intervals; and the side's
+   Nash mixture (``nash-team``) against every scripted player: its members' rates by their weights;
 2. its exploitability: ``--br-seeds`` best responses from scratch (``python -m league.exploit
    --games test --json``) against (a) the final snapshot and (b) the side's Nash mixture of
    the run's final meta-game (``nash-team``, ``nash-attacker``), each of ``--br-env-steps``
@@ -62,6 +63,7 @@ import numpy as np
 import torch
 
 from envs.scenarios import evaluation_scenarios
+from league.analysis.mixtures import store_mixture
 from league.analysis.statistics import SEED_INTERVAL, mean_interval, paired_t_test, wilson_interval
 from league.cli import cluster_or_exit, command_parser, count, tuning_seeds_error
 from league.config import ConfigError, load_config
@@ -146,19 +148,30 @@ def win_cell(wins: int, games: int) -> str:
     return f"{wins / games:.3f} [{low:.2f}, {high:.2f}]"
 
 
-def against_scripted(finals: Finals, episodes: int) -> dict[str, list[str]]:
-    """Per side, its final player's win rate cell against each scripted player of the other side, on the test games
-    (played and recorded in the run's store where missing)."""
+def against_scripted(finals: Finals, episodes: int) -> dict[str, dict[str, list[str]]]:
+    """Per side, the win rate cells of its final player and of its Nash mixture (``nash-SIDE``) against each scripted
+    player of the other side, on the test games (played and recorded in the run's store where missing). The
+    mixture's: its win rate in expectation over the member it draws, each member's rate by its weight."""
     run, store = open_run(finals.run_dir)
     try:
-        attacker, team = finals.players["attacker"], finals.players["team"]
-        pairs = {"attacker": [(attacker, t) for t in finals.scripted["team"]],
-                 "team": [(a, team) for a in finals.scripted["attacker"]]}
-        stats = test_game_stats(store, run, finals.run_dir, [*pairs["attacker"], *pairs["team"]], episodes)
+        mixtures = {side: store_mixture(store, f"nash-{side}") for side in SIDES}
+        pairs = {(side, name): [(p, o) if side == "attacker" else (o, p) for o in finals.scripted[other_side(side)]]
+                 for side in SIDES for name, p in [("final", finals.players[side]), *((m.name, m) for m in mixtures[side].members)]}
+        stats = test_game_stats(store, run, finals.run_dir, [pair for side_pairs in pairs.values() for pair in side_pairs], episodes)
     finally:
         store.close()
-    return {side: [win_cell(wins_of(side, stats[a.id, t.id].attacker_wins, episodes), episodes) for a, t in pairs[side]]
-            for side in SIDES}
+
+    def wins(side: str, name: str) -> list[int]:
+        return [wins_of(side, stats[a.id, t.id].attacker_wins, episodes) for a, t in pairs[side, name]]
+
+    cells = {}
+    for side in SIDES:
+        mixture = mixtures[side]
+        expected = sum(w * np.array(wins(side, m.name)) / episodes for m, w in zip(mixture.members, mixture.weights))
+        cells[side] = {"final": [win_cell(w, episodes) for w in wins(side, "final")],
+                       "nash": [f"{rate:.3f}" for rate in expected],
+                       "members": [f"{m.name} {w:.2f}" for m, w in zip(mixture.members, mixture.weights)]}
+    return cells
 
 
 def cross_play(finals: dict[str, Finals], game, episodes: int) -> dict[tuple[str, str], int]:
@@ -278,12 +291,17 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str
         other = other_side(side)
         titles = [p.name.removeprefix("scripted-") for p in any_run.scripted[other]] + [f"{a}'s {other}" for a in args.arms]
         lines += ["", f"## Final {side}s: their win rate on the test games", "",
+                  f"Each run's final {side} (Wilson 95%) and its Nash mixture `nash-{side}` (its members and weights; "
+                  "its win rate in expectation over the member it draws: the members' rates by their weights).", "",
                   f"| arm | seed | {side} | " + " | ".join(titles) + " |", "| --- " * (len(titles) + 3) + "|"]
         for (arm, seed), final in finals.items():
-            cells = scripted_cells[arm, seed][side] + [
+            scripted = scripted_cells[arm, seed][side]
+            cells = scripted["final"] + [
                 win_cell(wins_of(side, crossed[seed][(arm, y) if side == "attacker" else (y, arm)], args.episodes),
                          args.episodes) for y in args.arms]
             lines.append(f"| {arm} | {seed} | {final.players[side].name} | " + " | ".join(cells) + " |")
+            lines.append(f"| {arm} | {seed} | nash-{side}: {', '.join(scripted['members'])} | "
+                         + " | ".join(scripted["nash"] + ["-"] * len(args.arms)) + " |")
         lines += ["", f"## Exploitability of the final {side}s: best responses' win rate on the test games", "",
                   "| arm | seed | env steps + DO, exploiters | final: win rate | margin (member) | flat | "
                   "Nash mixture: win rate | margin (member) | flat |", "| --- " * 9 + "|"]

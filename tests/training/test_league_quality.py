@@ -80,6 +80,7 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
         league_quality, ray_instance, tmp_path, capsys, monkeypatch):
     from envs.scenarios import evaluation_scenarios
     from league.evaluation.engine import play_fixed_games, policies_of
+    from league.analysis.mixtures import store_mixture
     from league.state.run_dir import open_run
 
     from league.studies import exploitation
@@ -102,12 +103,19 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
         run, store = open_run(out / arm / "seed-5")
         try:
             players = {p.name: p for p in store.players()}
+            mixture = store_mixture(store, "nash-team")
             tested = store.evaluation_stats("test")
         finally:
             store.close()
         team = players["team-v1"]
         # Its final team against the scripted attacker: on the test games, recorded in its store.
         assert tested[players["scripted-lead_intercept"].id, team.id]["games"] == 6
+        # Its Nash mixture's too: each member's test games, its rate in expectation by the members' weights.
+        scripted = [p for p in players.values() if p.side == "attacker" and p.kind == "scripted"]
+        expected = [sum(w * (1 - tested[a.id, m.id]["attacker_wins"] / 6) for m, w in zip(mixture.members, mixture.weights))
+                    for a in scripted]
+        members = ", ".join(f"{m.name} {w:.2f}" for m, w in zip(mixture.members, mixture.weights))
+        assert f"| {arm} | 5 | nash-team: {members} | " + " | ".join(f"{r:.3f}" for r in expected) + " | - | - |" in lines
         # Exploited twice on the test games, its final snapshot and its side's Nash mixture, one row with both.
         kept = {p.name: json.loads(p.read_text()) for p in (out / arm / "seed-5" / "exploitability").iterdir()}
         assert sorted(kept) == ["nash-team-600-steps-6-test-games.json", "team-v1-600-steps-6-test-games.json"], arm
