@@ -22,9 +22,8 @@ lag means for the league:
   therefore learns from one batch fewer than it samples, and its first iteration only samples.
 * A checkpoint keeps the batch sampled ahead (``league.training.checkpoints``), so that a
   resumed run learns from it in its next iteration as the run never stopped does: two runs of
-  one seed are one run, and one killed and resumed has the same games, weights and evaluations
-  (``tests/training/test_sample_ahead.py``; the mean episode returns that RLlib smooths over
-  remote runners' episodes are not restored, with or without sampling ahead).
+  one seed are one run, and one killed and resumed is the run never killed
+  (``tests/training/test_sample_ahead.py``).
 * A lost remote runner's part of a batch is dropped, as without sampling ahead; the others
   sample the whole batch from the next iteration on (``FaultTolerantPPO``).
 """

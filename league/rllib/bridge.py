@@ -377,8 +377,19 @@ def load_module(path: str | Path) -> torch.nn.Module:
 
 
 def restore_algorithm(path: str | Path) -> Algorithm:
-    """The algorithm of a checkpoint, snapshot modules added at run time included."""
-    return Algorithm.from_checkpoint(str(path))
+    """The algorithm of a checkpoint, snapshot modules added at run time included, every env runner holding the
+    learner's weights of every module.
+
+    RLlib's restore (Ray 2.60) hands the remote env runners the local runner's state, its weights'
+    sequence number included, but not its weights, then skips the weight sync as up to date: they
+    went on sampling with the weights they were built with (the learners' priors, untrained
+    snapshots) until the next update, and a resumed run was another run."""
+    algo = Algorithm.from_checkpoint(str(path))
+    weights = {m: w for m, w in algo.learner_group.get_weights().items() if w}  # scripted modules have none
+    algo.env_runner_group.foreach_env_runner(
+        lambda runner: [runner.module[m].set_state(w) for m, w in weights.items()], local_env_runner=False,
+    )
+    return algo
 
 
 def learner_stats(result: dict[str, Any], modules: list[str]) -> dict[str, dict[str, Any]]:

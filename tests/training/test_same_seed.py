@@ -92,6 +92,25 @@ def test_a_run_killed_twice_and_resumed_is_the_run_never_killed(whole, tmp_path)
     assert not list((killed / "checkpoints").glob("*.partial"))
 
 
+def test_a_run_with_remote_env_runners_killed_and_resumed_is_the_run_never_killed(tmp_path):
+    # RLlib's restore left the remote runners with the weights they were built with (the priors):
+    # the resumed run's next iteration played other games (``bridge.restore_algorithm``).
+    remote = [*TINY_SMOKE, "--set", "resources.num_env_runners=2"]
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    finish(league(*remote, "--run-dir", str(whole)))
+    proc = league(*remote, "--run-dir", str(killed))
+    deadline = time.monotonic() + RUN_TIMEOUT
+    while iterations(killed) < 2:  # within the first phase: the next iteration samples with the restored weights
+        assert proc.poll() is None, proc.stdout.read()[-3000:]
+        assert time.monotonic() < deadline, "the run did not reach iteration 2 in time"
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=60)
+    assert iterations(killed) < iterations(whole), "the run ended before it was killed"
+    assert "resumed at iteration" in finish(league("--resume", str(killed)))
+    assert run_differences(whole, killed) == []
+
+
 def test_resume_restores_a_truncated_database_and_ends_as_the_run_never_damaged(whole, tmp_path):
     damaged = tmp_path / "damaged"
     shutil.copytree(whole, damaged)
