@@ -98,9 +98,16 @@ def test_a_run_with_remote_env_runners_killed_and_resumed_is_the_run_never_kille
     remote = [*TINY_SMOKE, "--set", "resources.num_env_runners=2"]
     whole, killed = tmp_path / "whole", tmp_path / "killed"
     finish(league(*remote, "--run-dir", str(whole)))
-    proc = league(*remote, "--run-dir", str(killed))
+    # killed within the first phase: the next iteration samples with the restored weights
+    killed_after_two_and_resumed(remote, whole, killed)
+    assert run_differences(whole, killed) == []
+
+
+def killed_after_two_and_resumed(args: list[str], whole: Path, killed: Path) -> None:
+    """Start the run ``args`` at ``killed``, SIGKILL it once 2 iterations are committed, resume it to its end."""
+    proc = league(*args, "--run-dir", str(killed))
     deadline = time.monotonic() + RUN_TIMEOUT
-    while iterations(killed) < 2:  # within the first phase: the next iteration samples with the restored weights
+    while iterations(killed) < 2:
         assert proc.poll() is None, proc.stdout.read()[-3000:]
         assert time.monotonic() < deadline, "the run did not reach iteration 2 in time"
         time.sleep(0.05)
@@ -108,7 +115,6 @@ def test_a_run_with_remote_env_runners_killed_and_resumed_is_the_run_never_kille
     proc.wait(timeout=60)
     assert iterations(killed) < iterations(whole), "the run ended before it was killed"
     assert "resumed at iteration" in finish(league("--resume", str(killed)))
-    assert run_differences(whole, killed) == []
 
 
 def test_resume_restores_a_truncated_database_and_ends_as_the_run_never_damaged(whole, tmp_path):

@@ -2,10 +2,6 @@
 takes was sampled by the policy exactly one update old, a phase's end drops the batch sampled
 ahead, and a run stays one run: two runs of one seed, and one killed and resumed, end alike."""
 
-import os
-import signal
-import time
-
 import numpy as np
 import pytest
 import torch
@@ -17,7 +13,7 @@ from league.rllib import bridge
 from league.state.run_dir import run_differences
 from ray.rllib.core.columns import Columns
 from ray.rllib.evaluation.postprocessing import Postprocessing
-from tests.training.test_same_seed import RUN_TIMEOUT, TINY_SMOKE, finish, iterations, league
+from tests.training.test_same_seed import TINY_SMOKE, finish, iterations, killed_after_two_and_resumed, league
 
 AHEAD = ["--set", "resources.sample_ahead=true", "--set", "resources.num_env_runners=2"]
 TINY_AHEAD = [*TINY_SMOKE, *AHEAD]
@@ -40,16 +36,7 @@ def test_two_sample_ahead_runs_with_one_seed_are_one_run(whole_and_second):
 
 def test_a_sample_ahead_run_killed_and_resumed_is_the_run_never_killed(whole_and_second, tmp_path):
     whole, killed = whole_and_second[0], tmp_path / "killed"
-    proc = league(*TINY_AHEAD, "--run-dir", str(killed))
-    deadline = time.monotonic() + RUN_TIMEOUT
-    while iterations(killed) < 2:  # past the first iteration: a batch waits in every checkpoint from here on
-        assert proc.poll() is None, proc.stdout.read()[-3000:]
-        assert time.monotonic() < deadline, "the run did not reach iteration 2 in time"
-        time.sleep(0.05)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait(timeout=60)
-    assert iterations(killed) < iterations(whole), "the run ended before it was killed"
-    assert "resumed at iteration" in finish(league("--resume", str(killed)))
+    killed_after_two_and_resumed(TINY_AHEAD, whole, killed)  # past the first iteration: a batch waits in its checkpoint
     assert run_differences(whole, killed) == []
 
 
