@@ -49,7 +49,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from league.analysis.exploitability import (
-    MIXTURE_BEST_RESPONSES, Baseline, BestResponseResult, CurvePoint, Exploitability, league_baseline, mixture_baseline,
+    MIXTURE_BEST_RESPONSES, Baseline, BestResponseResult, CurvePoint, Exploitability, baseline_of, mixture_best_responses,
     on_test_games,
 )
 from league.config import RunConfig
@@ -262,11 +262,6 @@ def next_version(players: list[Player], side: str, reward_method: int | None) ->
     return 1 + max(versions, default=-1)
 
 
-def mixture_best_responses(store: LeagueStore) -> list[dict]:
-    """The best responses trained against mixture players: player, mixture, seed, wins, games, budget, mixture seed."""
-    return list(store.get_meta(MIXTURE_BEST_RESPONSES, []))
-
-
 def next_seeds(players: list[Player], exploited: Contestant, k: int, store: LeagueStore | None = None) -> list[int]:
     """``k`` seeds after every seed already used for a best response against ``exploited`` (a mixture's: from
     ``store``'s ``MIXTURE_BEST_RESPONSES``)."""
@@ -314,8 +309,7 @@ def train_best_responses(
     from league.core.payoff import league_ratings
 
     evaluated = store.newest_evaluation_rows()
-    baseline = (mixture_baseline(exploited, store.players(), evaluated) if isinstance(exploited, Mixture)
-                else league_baseline(exploited, store.players(), evaluated))
+    baseline = baseline_of(exploited, store.players(), evaluated)
     if budget.games == "test":
         baseline = played_on_test_games(baseline, run, run_dir, store, episodes)
     say(baseline.line())
