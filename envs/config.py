@@ -74,6 +74,10 @@ class GameConfig(BaseModel):
     """Name of the scenario set that draws the starting positions (``envs.scenarios``)."""
     position_scale: PositiveFloat = 4.0
     """Length that divides positions and distances in the ``rich`` observation."""
+    attacker_memory: bool = False
+    """A's observation ends with one more number: the largest turn T has made away from its line
+    home so far in the game, as a fraction of T's largest turn per step (``envs.observations``).
+    A T that flies straight home never turns away; one that hides from an oncoming A does."""
 
     @model_validator(mode="after")
     def _check_game(self) -> "GameConfig":

@@ -68,6 +68,8 @@ class BatchedGame:
         self.targeter_velocity = np.zeros((num_games, 3))
         self.collision_distance = np.zeros(num_games)
         self.overchase_count = np.zeros(num_games, dtype=np.int64)
+        # A's memory when ``config.attacker_memory``: T's largest turn away from home so far.
+        self.targeter_turned_away = np.zeros(num_games)
         # The unit vectors of the headings after the last step, with the headings they belong
         # to: the next step starts from them unless the headings were changed in between.
         self._vectors_of: tuple[np.ndarray, np.ndarray] | None = None
@@ -101,6 +103,7 @@ class BatchedGame:
         self.targeter_velocity[games] = velocity
         self.collision_distance[games] = self._collision_distance(positions, velocity)
         self.overchase_count[games] = 0
+        self.targeter_turned_away[games] = 0.0
 
     # ----------------------------------------------------------------- views
     @property
@@ -115,7 +118,9 @@ class BatchedGame:
 
     def observations(self) -> list[np.ndarray]:
         """``[attacker, targeter, defender]`` observations, each ``(N, size)``."""
-        return observe(self.config, self.positions, self.headings, self.time_left)
+        return observe(
+            self.config, self.positions, self.headings, self.time_left, targeter_turned_away=self.targeter_turned_away
+        )
 
     def global_state(self) -> np.ndarray:
         return global_state(self.config, self.positions, self.headings, self.time_left)
@@ -168,6 +173,8 @@ class BatchedGame:
         event_fraction = np.where(np.isfinite(event_fraction), event_fraction, 1.0)
 
         reward, attacker_rewards = self._rewards(before, after, headings)
+        if cfg.attacker_memory:
+            self._remember_turn_away(before, arcs, running)
         done = running & (outcome != RUNNING)
         if cfg.terminal_reward:
             attacker_won = np.isin(outcome, ATTACKER_WIN_VALUES)
@@ -185,6 +192,13 @@ class BatchedGame:
         self.steps = np.where(running, steps, self.steps)
         self.outcome = outcome
         return StepResult(reward, done, outcome, event_fraction, attacker_rewards)
+
+    def _remember_turn_away(self, before: np.ndarray, arcs: Arcs, running: np.ndarray) -> None:
+        """Keep T's largest turn away from its line home (from where the step started), per game."""
+        home = -before[:, TARGETER]
+        turned_away = angle_between(arcs.end_tangent[:, TARGETER], home) - angle_between(arcs.tangent[:, TARGETER], home)
+        fraction = np.clip(turned_away / min(self.max_turn[TARGETER], np.pi), 0.0, 1.0)
+        self.targeter_turned_away = np.where(running, np.maximum(self.targeter_turned_away, fraction), self.targeter_turned_away)
 
     def _heading_vectors(self) -> np.ndarray:
         """Unit vectors of ``self.headings``: those of the last step if the headings are unchanged."""

@@ -32,6 +32,13 @@ loses nothing, and a turn toward something is a simple function of where it appe
 | 20    | fraction of the time limit left, 1 at the start           |
 | 21-22 | T and D only: role one-hot (targeter, defender)           |
 
+With ``attacker_memory`` (both layouts), A's observation ends with one more number: the
+largest turn T has made away from its line home so far in the game (the growth over one step
+of the angle between T's heading and its line from the step's start to the terminal), as a
+fraction of T's largest turn per step, in ``[0, 1]``. A T that flies at the terminal never turns
+away from it; one that hides from an oncoming A does, and A remembers it after T turns back
+(``BatchedGame.targeter_turned_away``, reset with the game).
+
 "Others" come opponent first: A sees (T, D), T sees (A, D), D sees (A, T).
 
 Global state (critic input, 22 numbers): positions of A, T, D (9, scaled); headings of A,
@@ -75,7 +82,7 @@ ROLE_ONE_HOT = {TARGETER: (1.0, 0.0), DEFENDER: (0.0, 1.0)}
 
 def observation_size(config: GameConfig, agent: int) -> int:
     base = PAPER_SIZE if config.observation == "paper" else RICH_SIZE
-    return base if agent == ATTACKER else base + ROLE_SIZE
+    return base + int(config.attacker_memory) if agent == ATTACKER else base + ROLE_SIZE
 
 
 def policy_input_size(config: GameConfig, agent: int) -> int:
@@ -100,9 +107,10 @@ def role_of(observation):  # type: ignore[no-untyped-def]
     return observation[..., -ROLE_SIZE:]
 
 
-def _with_role(obs: np.ndarray, agent: int) -> np.ndarray:
+def _with_role_or_memory(obs: np.ndarray, agent: int, memory: np.ndarray | None) -> np.ndarray:
+    """T's and D's observation end with their role, A's with its memory where it has one."""
     if agent == ATTACKER:
-        return obs
+        return obs if memory is None else np.concatenate((obs, memory[:, None]), axis=1)
     role = np.broadcast_to(np.asarray(ROLE_ONE_HOT[agent]), (obs.shape[0], ROLE_SIZE))
     return np.concatenate((obs, role), axis=1)
 
@@ -113,8 +121,18 @@ def observe(
     headings: np.ndarray,
     time_left: np.ndarray,
     agents: Sequence[int] = (ATTACKER, TARGETER, DEFENDER),
+    targeter_turned_away: np.ndarray | None = None,
 ) -> list[np.ndarray]:
-    """Observations of ``agents`` (default ``[attacker, targeter, defender]``), each ``(N, size)`` float32."""
+    """Observations of ``agents`` (default ``[attacker, targeter, defender]``), each ``(N, size)`` float32.
+
+    ``targeter_turned_away`` ``(N,)``: A's memory (``BatchedGame.targeter_turned_away``), needed
+    when ``config.attacker_memory``.
+    """
+    memory = None
+    if config.attacker_memory:
+        if targeter_turned_away is None:
+            raise ValueError("game.attacker_memory: the attacker's observation needs targeter_turned_away")
+        memory = np.asarray(targeter_turned_away, dtype=np.float64)
     if config.observation == "paper":
         shared = np.concatenate(
             (
@@ -127,7 +145,7 @@ def observe(
             ),
             axis=1,
         )
-        return [_with_role(shared, agent).astype(np.float32) for agent in agents]
+        return [_with_role_or_memory(shared, agent, memory).astype(np.float32) for agent in agents]
 
     scaled = positions / config.position_scale
     vectors = heading_vectors(headings)
@@ -141,7 +159,7 @@ def observe(
             rel = scaled[:, other] - own
             parts += [to_frame(rel), norm(rel)[:, None], to_frame(vectors[:, other])]
         parts += [to_frame(-own), norm(own)[:, None], time_left[:, None]]
-        out.append(_with_role(np.concatenate(parts, axis=1), agent).astype(np.float32))
+        out.append(_with_role_or_memory(np.concatenate(parts, axis=1), agent, memory).astype(np.float32))
     return out
 
 

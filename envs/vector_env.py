@@ -83,7 +83,10 @@ class TargetDefenseVectorEnv:
             return {}
         core, rows = self.core, slice(None) if games is None else games
         positions, headings, time_left = core.positions[rows], core.headings[rows], core.time_left[rows]
-        observations = observe(self.config, positions, headings, time_left, [AGENTS.index(a) for a in agents])
+        observations = observe(
+            self.config, positions, headings, time_left, [AGENTS.index(a) for a in agents],
+            targeter_turned_away=core.targeter_turned_away[rows],
+        )
         if self.with_global_state:
             state = global_state(self.config, positions, headings, time_left)
             observations = [policy_input(obs, state) for obs in observations]

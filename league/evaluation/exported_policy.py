@@ -146,7 +146,7 @@ def metadata(run: Any, player: Player, module: Any) -> dict[str, Any]:
             "mode": run.game.observation,
             "size": int(obs_space.shape[0]),
             "layout": "envs.observations (rich: agent-centred, lengths / position_scale; T and D end with a role "
-            "one-hot (targeter, defender))",
+            "one-hot (targeter, defender); with game.attacker_memory A's ends with T's largest turn away from home)",
         },
         "action": {
             "mode": run.game.action_mode,

@@ -60,12 +60,12 @@ def test_time_left_counts_down_and_global_state_size():
     assert game.global_state().shape == (1, 22)
 
 
-@pytest.mark.parametrize("observation", ["paper", "rich"])
-def test_policy_input_is_own_observation_then_global_state(observation):
+@pytest.mark.parametrize("observation,memory", [("paper", False), ("rich", False), ("rich", True)])
+def test_policy_input_is_own_observation_then_global_state(observation, memory):
     from envs.observations import policy_input, policy_input_size, split_policy_input
     from envs.vector_env import TargetDefenseVectorEnv
 
-    config = GameConfig(observation=observation)
+    config = GameConfig(observation=observation, attacker_memory=memory)
     env = TargetDefenseVectorEnv({**config.model_dump(), "with_global_state": True}, 3)
     inputs = env.reset(seed=5)
     core = env.core
@@ -77,5 +77,31 @@ def test_policy_input_is_own_observation_then_global_state(observation):
         np.testing.assert_array_equal(policy_input(own, state), inputs[agent])
     # the paper's 15 numbers, the rich 21; T and D add their role one-hot
     assert [policy_input_size(config, i) - 22 for i in range(3)] == (
-        [15, 17, 17] if observation == "paper" else [21, 23, 23]
+        [15, 17, 17] if observation == "paper" else [21 + memory, 23, 23]
     )
+
+
+def test_the_attackers_memory_tells_a_straight_flying_targeter_from_one_that_hides():
+    from envs.match import scripted_players
+    from envs.scenarios import evaluation_scenarios
+
+    starts = evaluation_scenarios("default", 200)
+    memories = {}
+    for targeter in ("straight", "avoid_oncoming_attacker"):
+        players = scripted_players("lead_intercept", targeter, "pure_pursuit")
+        game = BatchedGame(GameConfig(attacker_memory=True), len(starts))
+        game.reset(positions=starts)
+        seen = [game.observations()[0][:, -1]]
+        while game.active.any():
+            game.step(np.stack([players[agent].act(game) for agent in AGENTS], axis=1))
+            attacker, targeter_obs, _ = game.observations()
+            assert attacker.shape == (200, 22) and targeter_obs.shape == (200, 23)  # only A remembers
+            seen.append(attacker[:, -1])
+        memories[targeter] = np.stack(seen)
+        game.reset_games(np.arange(10), positions=starts[:10])
+        assert not game.observations()[0][:10, -1].any()  # a new game starts with nothing to remember
+    assert memories["straight"].max() < 1e-6  # flying at the terminal never turns T away from it
+    hides = memories["avoid_oncoming_attacker"]
+    assert np.all(np.diff(hides, axis=0) >= 0)  # remembered after T turns back home
+    assert np.mean(hides[-1] > 0.05) > 0.5  # lead intercept comes at T: most such T turn to hide
+
