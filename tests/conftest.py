@@ -53,7 +53,8 @@ def ray_instance():
     """
     import ray  # here: the modules that never start Ray do not import it
 
-    ray.init(address="local", num_cpus=2, include_dashboard=False)
+    # No worker output forwarded, as in the commands: a trial's exit noise is not the command's stderr.
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield
     ray.shutdown()
 
