@@ -100,6 +100,10 @@ class PPOSettings(Strict):
                         "avoid_oncoming_attacker+pure_pursuit"] = "none"
     """A scripted team (``envs.scripted``) whose turn plus the team's network output is its policy mean, so untrained it
     plays that team ([training.md](training.md)); ``none``: the network alone. Needs as ``attacker_prior`` does."""
+    attacker_residual_penalty: float = Field(0.0, ge=0)
+    """Weight of the attacker network's squared output (its correction of ``attacker_prior``'s turn, summed over the
+    action's two numbers, averaged over the minibatch) in the attacker's loss, so the attacker leaves the prior only
+    where that pays; 0: none. Needs ``attacker_prior`` and ``resources.sampler: fast``."""
     attacker_heading_cosines: bool = False
     """The attacker's network also reads two cosines of its observation: T's heading against T's line to the terminal,
     D's against D's line to A (``league.rllib.modules.HeadingCosines``). Needs ``game.observation: rich``."""
@@ -341,6 +345,8 @@ class RunConfig(Strict):
         for key in ("attacker_prior", "team_prior"):
             if getattr(self.ppo, key) != "none" and (self.game.observation, self.game.action_mode) != ("rich", "relative"):
                 raise ValueError(f"ppo.{key} needs game.observation: rich and game.action_mode: relative")
+        if self.ppo.attacker_residual_penalty and self.ppo.attacker_prior == "none":
+            raise ValueError("ppo.attacker_residual_penalty needs ppo.attacker_prior (it weighs the correction of a prior)")
         if self.ppo.attacker_heading_cosines and self.game.observation != "rich":
             raise ValueError("ppo.attacker_heading_cosines needs game.observation: rich")
         if self.ppo.minibatch_size > self.ppo.train_batch_size:
@@ -349,7 +355,7 @@ class RunConfig(Strict):
             raise ValueError("ppo.minibatch_counts: env_steps needs resources.sampler: fast (RLlib's PPO has one minibatch size)")
         if self.ppo.team_reward != "own" and self.resources.sampler != "fast":
             raise ValueError("ppo.team_reward: shared needs resources.sampler: fast (RLlib's learner pays each agent its own reward)")
-        for key in ("targeter_shaping", "defender_shaping", "attacker_win_reward", "bf16"):
+        for key in ("targeter_shaping", "defender_shaping", "attacker_win_reward", "attacker_residual_penalty", "bf16"):
             if getattr(self.ppo, key) and self.resources.sampler != "fast":
                 raise ValueError(f"ppo.{key} needs resources.sampler: fast (RLlib's learner connectors would not apply it)")
         if self.resources.sample_ahead and (self.resources.num_env_runners < 1 or self.resources.sampler != "fast"):

@@ -237,6 +237,12 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         """The Gaussian's mean: what the policy does when not exploring."""
         return self.pi(self.actor_features(obs))
 
+    def prior_correction(self, obs: torch.Tensor) -> torch.Tensor:
+        """The network's part of the mean: what it adds to the prior's turn (``ResidualActor``)."""
+        if not isinstance(self.pi, ResidualActor):
+            raise ValueError("a module without a prior has no correction of one")
+        return self.pi.net(self.actor_features(obs))
+
     def action_dist_inputs(self, obs: torch.Tensor) -> torch.Tensor:
         """The Gaussian's mean and log standard deviation, side by side (RLlib's ``TorchDiagGaussian`` inputs)."""
         mean = self.deterministic_action(obs)

@@ -102,13 +102,15 @@ def anchor_at_learner(rows: LossRows, module: Any, bf16: bool = False) -> None:
 @dataclass(frozen=True)
 class PPOCoefficients:
     """One module's loss settings for one update (``entropy_coeff`` and ``kl_coeff`` are
-    RLlib's current values, the tensors its loss multiplies by; ``kl_coeff`` None: no KL term)."""
+    RLlib's current values, the tensors its loss multiplies by; ``kl_coeff`` None: no KL term;
+    ``residual_penalty``: ``PPOSettings.attacker_residual_penalty``, not RLlib's)."""
 
     clip_param: float
     vf_clip_param: float
     vf_loss_coeff: float
     entropy_coeff: Any
     kl_coeff: Any
+    residual_penalty: float = 0.0
 
 
 @dataclass
@@ -160,6 +162,10 @@ def ppo_loss(
     total = torch.mean(-surrogate + c.vf_loss_coeff * vf_loss_clipped - (c.entropy_coeff * entropy))
     if mean_kl is not None:
         total += c.kl_coeff * mean_kl
+    if c.residual_penalty:  # after RLlib's terms: without it the update stays RLlib's to the bit
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+            residual = module.prior_correction(batch[Columns.OBS]).float()
+        total += c.residual_penalty * residual.pow(2).sum(-1).mean()
     return total, LossTerms(surrogate, vf_loss, vf_loss_clipped, entropy, mean_kl, values, value_targets)
 
 

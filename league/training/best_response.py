@@ -79,6 +79,8 @@ def best_response_config(run: RunConfig, exploited: Contestant, seed: int, env_s
         data["game"]["terminal_reward"] = TERMINAL_REWARD
     if not from_prior:  # the exploited side's prior stays: it is part of the frozen player
         data["ppo"][f"{side}_prior"] = "none"
+        if side == "attacker":  # no prior to be pulled back to
+            data["ppo"]["attacker_residual_penalty"] = 0.0
     data["name"] = f"{run.name}-best-response"
     data["seed"] = seed
     data["league"]["mode"] = "protocol"

@@ -14,6 +14,9 @@ from envs.scripted import ScriptedPlayer, targeter_is_safe
 from league.config import load_config
 from league.evaluation.exported_policy import ExportedPolicy, export
 from league.rllib.bridge import learner_spec
+from league.rllib.ppo_loss import LOG_SQRT_2PI, PPOCoefficients, ppo_loss
+from ray.rllib.core.columns import Columns
+from ray.rllib.evaluation.postprocessing import Postprocessing
 
 
 def attacker_with_prior(run):
@@ -72,6 +75,46 @@ def test_a_team_with_an_avoiding_prior_and_a_silent_network_plays_that_scripted_
     assert 0.05 < safe.mean() < 0.95 and 0.05 < (~safe & ~oncoming).mean() and 0.05 < (~safe & oncoming).mean()
     assert_plays(team, run, game, TARGETER, targeter)
     assert_plays(team, run, game, DEFENDER, "pure_pursuit")
+
+
+def correction_after_updates(run, penalty):
+    """The mean square of the attacker network's correction of lead intercept before and after 30 Adam steps on
+    a batch whose advantages are all zero: PPO's surrogate gives the actor no gradient, so only the penalty moves it."""
+    torch.manual_seed(0)
+    module = attacker_with_prior(run)
+    torch.nn.init.normal_(module.pi.net[-1].weight, std=0.3)  # a correction to pull back
+    game = turned_anywhere(run)
+    time_left = np.ones(game.num_games)
+    obs = torch.from_numpy(policy_input(observe(run.game, game.positions, game.headings, time_left, agents=[ATTACKER])[0],
+                                        global_state(run.game, game.positions, game.headings, time_left)))
+    with torch.no_grad():
+        dist_inputs = module.action_dist_inputs(obs)
+        mean, log_std = dist_inputs.chunk(2, dim=-1)
+        logp = (-log_std - LOG_SQRT_2PI).sum(-1)  # the mean's own log-probability
+    zeros = torch.zeros(len(obs))
+    batch = {Columns.OBS: obs, Columns.ACTIONS: mean, Columns.ACTION_LOGP: logp, Columns.ACTION_DIST_INPUTS: dist_inputs,
+             Postprocessing.ADVANTAGES: zeros, Postprocessing.VALUE_TARGETS: zeros}
+    coefficients = PPOCoefficients(clip_param=0.2, vf_clip_param=float("inf"), vf_loss_coeff=0.5, entropy_coeff=0.0,
+                                   kl_coeff=None, residual_penalty=penalty)
+    optimizer = torch.optim.Adam(module.parameters(), lr=1e-3)
+
+    def square():
+        with torch.no_grad():
+            return module.prior_correction(obs).pow(2).sum(-1).mean().item()
+
+    before = square()
+    for _ in range(30):
+        optimizer.zero_grad()
+        ppo_loss(module, batch, coefficients)[0].backward()
+        optimizer.step()
+    return before, square()
+
+
+def test_the_residual_penalty_pulls_the_attacker_back_to_its_prior():
+    run = load_config("attacker_method2", [])
+    before, after = correction_after_updates(run, penalty=1.0)
+    assert before > 0.05 and after < before / 2
+    assert correction_after_updates(run, penalty=0.0) == (before, before)  # no penalty: the actor stays as it was
 
 
 @pytest.mark.parametrize("fmt", ["export", "torchscript", "onnx"])
