@@ -104,6 +104,11 @@ class PPOSettings(Strict):
     """Weight of the attacker network's squared output (its correction of ``attacker_prior``'s turn, summed over the
     action's two numbers, averaged over the minibatch) in the attacker's loss, so the attacker leaves the prior only
     where that pays; 0: none. Needs ``attacker_prior`` and ``resources.sampler: fast``."""
+    attacker_residual_penalty_gate: Literal["always", "until_targeter_turns"] = "always"
+    """Where ``attacker_residual_penalty`` weighs: on every step, or only on steps where A's memory
+    (``game.attacker_memory``) says T has not yet turned away from home (below ``TARGETER_TURNED``,
+    ``league.rllib.modules``): A is pulled back to lead intercept against a T that flies straight home and is
+    free against one that has hidden. ``until_targeter_turns`` needs ``game.attacker_memory``."""
     attacker_heading_cosines: bool = False
     """The attacker's network also reads two cosines of its observation: T's heading against T's line to the terminal,
     D's against D's line to A (``league.rllib.modules.HeadingCosines``). Needs ``game.observation: rich``."""
@@ -347,6 +352,8 @@ class RunConfig(Strict):
                 raise ValueError(f"ppo.{key} needs game.observation: rich and game.action_mode: relative")
         if self.ppo.attacker_residual_penalty and self.ppo.attacker_prior == "none":
             raise ValueError("ppo.attacker_residual_penalty needs ppo.attacker_prior (it weighs the correction of a prior)")
+        if self.ppo.attacker_residual_penalty_gate != "always" and not self.game.attacker_memory:
+            raise ValueError("ppo.attacker_residual_penalty_gate: until_targeter_turns needs game.attacker_memory")
         if self.ppo.attacker_heading_cosines and self.game.observation != "rich":
             raise ValueError("ppo.attacker_heading_cosines needs game.observation: rich")
         if self.ppo.minibatch_size > self.ppo.train_batch_size:

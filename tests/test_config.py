@@ -44,6 +44,7 @@ def write(tmp_path, text):
         ("name: x\nppo: {attacker_heading_cosines: true}\ngame: {observation: paper}\n", "attacker_heading_cosines"),
         ("name: x\nppo: {attacker_residual_penalty: 0.1}\n", "attacker_residual_penalty needs ppo.attacker_prior"),
         ("name: x\nppo: {attacker_residual_penalty: -1, attacker_prior: lead_intercept}\n", "ppo.attacker_residual_penalty"),
+        ("name: x\nppo: {attacker_residual_penalty_gate: until_targeter_turns}\n", "needs game.attacker_memory"),
         ("name: x\nppo: {lr_schedule: [[0, 0.001], [0, 0.0001]]}\n", "lr_schedule"),
         ("name: x\nresources: {sample_ahead: true}\n", "resources.sample_ahead needs resources.num_env_runners >= 1"),
         ("name: x\nresources: {sample_ahead: true, num_env_runners: 1, sampler: batched}\n", "resources.sample_ahead"),

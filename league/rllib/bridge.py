@@ -30,7 +30,7 @@ from envs.single import action_space
 from league.config import RunConfig
 from league.core.match_plan import MatchPlan
 from league.core.players import NewPlayer, Player
-from league.rllib.algorithm import MINIBATCH_SIZES, RESIDUAL_PENALTIES, SAMPLE_AHEAD, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
+from league.rllib.algorithm import MINIBATCH_SIZES, RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, SAMPLE_AHEAD, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
 from league.rllib.env_runner import BatchedEnvRunner, SeededEnvRunner, seed_iteration
 from league.rllib import compat
@@ -200,6 +200,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
                 MINIBATCH_SIZES: {p.name: ppo.minibatch(p.side) for p in players if p.trains},
                 SAMPLE_AHEAD: res.sample_ahead,
                 RESIDUAL_PENALTIES: {p.name: ppo.attacker_residual_penalty for p in players if p.trains and p.side == "attacker"},
+                RESIDUAL_PENALTY_GATED: ppo.attacker_residual_penalty_gate != "always",
             },
         )
         .multi_agent(

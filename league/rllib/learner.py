@@ -11,7 +11,7 @@ import torch
 from league.rllib import compat
 from league.rllib.flat_adam import FlatAdam
 from league.rllib.modules import ActorCriticModule
-from league.rllib.algorithm import RESIDUAL_PENALTIES, SAMPLE_AHEAD
+from league.rllib.algorithm import RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, SAMPLE_AHEAD
 from league.rllib.ppo_loss import LossRows, PPOCoefficients, anchor_at_learner, loss_stats, ppo_loss
 from league.rollout.train_batch import minibatch_rows
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
@@ -196,6 +196,7 @@ class LeaguePPOLearner(PPOTorchLearner):
             entropy_coeff=self.entropy_coeff_schedulers_per_module[module_id].get_current_value(),
             kl_coeff=self.curr_kl_coeffs_per_module[module_id] if config.use_kl_loss else None,
             residual_penalty=self.config.learner_config_dict.get(RESIDUAL_PENALTIES, {}).get(module_id, 0.0),
+            residual_penalty_gated=self.config.learner_config_dict.get(RESIDUAL_PENALTY_GATED, False),
         )
 
     def _clipped_steps(self, module_ids: list[str]) -> list[ClippedStep] | None:

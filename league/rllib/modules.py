@@ -47,6 +47,9 @@ from ray.rllib.core.rl_module.torch import TorchRLModule
 
 # Initial log standard deviation of the Gaussian policy (std ~0.6 of the [-1, 1] range).
 INITIAL_LOG_STD = -0.5
+# A's memory above which T has turned away from home (a fraction of T's largest turn per step):
+# a straight-flying T stays below 1e-6, most avoiding T that lead intercept comes at pass 0.05.
+TARGETER_TURNED = 0.05
 
 
 class _RLModuleConfigNotice(logging.Filter):
@@ -242,6 +245,12 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         if not isinstance(self.pi, ResidualActor):
             raise ValueError("a module without a prior has no correction of one")
         return self.pi.net(self.actor_features(obs))
+
+    def targeter_still_straight(self, obs: torch.Tensor) -> torch.Tensor:
+        """1.0 on rows where A's memory (the last number of its observation) says T has not turned away, else 0.0."""
+        if not self.settings.game.attacker_memory:
+            raise ValueError("without game.attacker_memory the attacker remembers no turn of T")
+        return (self.actor_features(obs)[..., -1] < TARGETER_TURNED).float()
 
     def action_dist_inputs(self, obs: torch.Tensor) -> torch.Tensor:
         """The Gaussian's mean and log standard deviation, side by side (RLlib's ``TorchDiagGaussian`` inputs)."""

@@ -103,7 +103,8 @@ def anchor_at_learner(rows: LossRows, module: Any, bf16: bool = False) -> None:
 class PPOCoefficients:
     """One module's loss settings for one update (``entropy_coeff`` and ``kl_coeff`` are
     RLlib's current values, the tensors its loss multiplies by; ``kl_coeff`` None: no KL term;
-    ``residual_penalty``: ``PPOSettings.attacker_residual_penalty``, not RLlib's)."""
+    ``residual_penalty``, ``residual_penalty_gated``: ``PPOSettings.attacker_residual_penalty`` and its
+    gate, not RLlib's)."""
 
     clip_param: float
     vf_clip_param: float
@@ -111,6 +112,7 @@ class PPOCoefficients:
     entropy_coeff: Any
     kl_coeff: Any
     residual_penalty: float = 0.0
+    residual_penalty_gated: bool = False
 
 
 @dataclass
@@ -165,7 +167,10 @@ def ppo_loss(
     if c.residual_penalty:  # after RLlib's terms: without it the update stays RLlib's to the bit
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             residual = module.prior_correction(batch[Columns.OBS]).float()
-        total += c.residual_penalty * residual.pow(2).sum(-1).mean()
+        square = residual.pow(2).sum(-1)
+        if c.residual_penalty_gated:
+            square = square * module.targeter_still_straight(batch[Columns.OBS])
+        total += c.residual_penalty * square.mean()
     return total, LossTerms(surrogate, vf_loss, vf_loss_clipped, entropy, mean_kl, values, value_targets)
 
 

@@ -12,7 +12,7 @@ from envs.agents import AGENTS, Outcome
 from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal_distance
 from league.core.match_plan import MatchPlan
 from league.rllib import learner as learner_module
-from league.rllib.algorithm import MINIBATCH_SIZES, RESIDUAL_PENALTIES, LeaguePPO, training_batch
+from league.rllib.algorithm import MINIBATCH_SIZES, RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, LeaguePPO, training_batch
 from league.rllib.bridge import build_config, episode_outcomes, learner_settings, learner_spec, set_trainable
 from league.rollout.train_batch import gae, minibatch_rows
 from league.rollout.training_reward import potential_shaping
@@ -182,11 +182,14 @@ def test_an_exploiter_learns_in_its_sides_minibatches():
 
 def test_the_residual_penalty_reaches_the_attacker_learners_loss_only():
     run = RunConfig(**{**RUN.model_dump(), "ppo": {**RUN.ppo.model_dump(), "attacker_prior": "lead_intercept",
-                                                   "attacker_residual_penalty": 0.5}})
+                                                   "attacker_residual_penalty": 0.5,
+                                                   "attacker_residual_penalty_gate": "until_targeter_turns"},
+                       "game": {**RUN.game.model_dump(), "attacker_memory": True}})
     exploiter = Player(id=4, side="attacker", kind="exploiter", version=0, reward_method=2)
     plan = MatchPlan([{"attacker": ATTACKER.name}], [[TEAM.modules()]], [[1.0]], seed=0)
     config = build_config(run, [ATTACKER, exploiter, TEAM, SCRIPTED_TEAM], plan)
     assert config.learner_config_dict[RESIDUAL_PENALTIES] == {ATTACKER.name: 0.5, exploiter.name: 0.5}
+    assert config.learner_config_dict[RESIDUAL_PENALTY_GATED] is True
 
 
 def test_minibatches_counted_in_env_steps_give_the_team_twice_the_rows(algo):  # `algo`: Ray is up
