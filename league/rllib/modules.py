@@ -240,11 +240,14 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         """The Gaussian's mean: what the policy does when not exploring."""
         return self.pi(self.actor_features(obs))
 
-    def prior_correction(self, obs: torch.Tensor) -> torch.Tensor:
-        """The network's part of the mean: what it adds to the prior's turn (``ResidualActor``)."""
+    def prior_correction(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``action_dist_inputs`` and the network's part of the mean, what it adds to the prior's turn
+        (``ResidualActor``), from one pass of the network."""
         if not isinstance(self.pi, ResidualActor):
             raise ValueError("a module without a prior has no correction of one")
-        return self.pi.net(self.actor_features(obs))
+        own = self.actor_features(obs)
+        correction = self.pi.net(own)
+        return self.dist_inputs(self.pi.prior(own) + correction), correction
 
     def targeter_still_straight(self, obs: torch.Tensor) -> torch.Tensor:
         """1.0 on rows where A's memory (the last number of its observation) says T has not turned away, else 0.0."""
@@ -254,9 +257,10 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
 
     def action_dist_inputs(self, obs: torch.Tensor) -> torch.Tensor:
         """The Gaussian's mean and log standard deviation, side by side (RLlib's ``TorchDiagGaussian`` inputs)."""
-        mean = self.deterministic_action(obs)
-        log_std = self.log_std.expand_as(mean)
-        return torch.cat((mean, log_std), dim=-1)
+        return self.dist_inputs(self.deterministic_action(obs))
+
+    def dist_inputs(self, mean: torch.Tensor) -> torch.Tensor:
+        return torch.cat((mean, self.log_std.expand_as(mean)), dim=-1)
 
     def _forward(self, batch: dict[str, Any], **kwargs) -> dict[str, Any]:
         return {Columns.ACTION_DIST_INPUTS: self.action_dist_inputs(batch[Columns.OBS])}

@@ -136,7 +136,11 @@ def ppo_loss(
     ratios, logs and means of the loss keep float32's precision."""
     with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
         # RLlib: forward_train, then TorchDiagGaussian.from_logits: chunk, exp.
-        dist_inputs = module.action_dist_inputs(batch[Columns.OBS]).float()
+        if c.residual_penalty:  # the network's correction of the prior too, from the same pass
+            dist_inputs, correction = module.prior_correction(batch[Columns.OBS])
+            dist_inputs, correction = dist_inputs.float(), correction.float()
+        else:
+            dist_inputs = module.action_dist_inputs(batch[Columns.OBS]).float()
     loc, log_std = dist_inputs.chunk(2, dim=-1)
     scale = log_std.exp()
     # Normal.log_prob(actions), summed over the action's dimensions.
@@ -165,9 +169,7 @@ def ppo_loss(
     if mean_kl is not None:
         total += c.kl_coeff * mean_kl
     if c.residual_penalty:  # after RLlib's terms: without it the update stays RLlib's to the bit
-        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
-            residual = module.prior_correction(batch[Columns.OBS]).float()
-        square = residual.pow(2).sum(-1)
+        square = correction.pow(2).sum(-1)
         if c.residual_penalty_gated:
             square = square * module.targeter_still_straight(batch[Columns.OBS])
         total += c.residual_penalty * square.mean()

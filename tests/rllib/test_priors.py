@@ -100,7 +100,7 @@ def correction_after_updates(run, penalty):
 
     def square():
         with torch.no_grad():
-            return module.prior_correction(obs).pow(2).sum(-1).mean().item()
+            return module.prior_correction(obs)[1].pow(2).sum(-1).mean().item()
 
     before = square()
     for _ in range(30):
@@ -128,7 +128,8 @@ def test_the_gated_penalty_weighs_only_the_steps_before_t_turns_away():
     obs = torch.from_numpy(policy_input(own, global_state(run.game, game.positions, game.headings, time_left)))
     with torch.no_grad():
         dist_inputs = module.action_dist_inputs(obs)
-        square = module.prior_correction(obs).pow(2).sum(-1)
+        square = module.prior_correction(obs)[1].pow(2).sum(-1)
+        assert torch.equal(module.prior_correction(obs)[0], dist_inputs)  # the loss's one pass gives the policy's inputs
     zeros = torch.zeros(len(obs))
     batch = {Columns.OBS: obs, Columns.ACTIONS: dist_inputs[:, :2], Columns.ACTION_LOGP: zeros,
              Columns.ACTION_DIST_INPUTS: dist_inputs, Postprocessing.ADVANTAGES: zeros, Postprocessing.VALUE_TARGETS: zeros}
