@@ -41,12 +41,13 @@ their formulas, sources and departures from the theory are):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Callable
 
 import numpy as np
 
 from envs.agents import AGENTS, ATTACKER, DEFENDER, TARGETER
 from envs.config import GameConfig
+from envs.game_view import DecodedGames, GameView
 from envs.geometry import lead_intercept, norm, unit
 from envs.kinematics import heading_vectors, headings_of, wrap_to_pi
 from envs.observations import decode_global_state
@@ -56,39 +57,6 @@ from envs.theory_players import attacker_apollonius, defender_active_defense, ta
 NAVIGATION_GAIN = 3.0
 # How far behind D (seen from A) the avoiding targeter aims.
 SHELTER_DISTANCE = 0.3
-
-
-
-class GameView(Protocol):
-    """What a scripted player reads of ``N`` games; ``envs.core.BatchedGame`` is one.
-
-    Read-only members, so that a frozen ``DecodedGames`` is one too.
-    """
-
-    @property
-    def config(self) -> GameConfig: ...
-
-    @property
-    def positions(self) -> np.ndarray: ...  # (N, 3 agents, 3)
-
-    @property
-    def headings(self) -> np.ndarray: ...  # (N, 3 agents, 2): yaw, pitch
-
-    @property
-    def speeds(self) -> np.ndarray: ...  # (3 agents,)
-
-
-@dataclass(frozen=True)
-class DecodedGames:
-    """Games known only by their global states: the ``GameView`` of ``act_from_state``."""
-
-    config: GameConfig
-    positions: np.ndarray
-    headings: np.ndarray
-
-    @property
-    def speeds(self) -> np.ndarray:
-        return np.asarray(self.config.speeds)
 
 
 Direction = Callable[[GameView], np.ndarray]

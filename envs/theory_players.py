@@ -78,17 +78,13 @@ cross it to reach T) D flies at A.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from envs.agents import ATTACKER, DEFENDER, TARGETER
+from envs.game_view import GameView
 from envs.geometry import dot, lead_intercept, norm, unit
 from envs.kinematics import heading_vectors
 from envs.start_classes import race_margin, region_radius
-
-if TYPE_CHECKING:
-    from envs.scripted import GameView
 
 APPROACH_CANDIDATES = 8
 """Aim points the Apollonius attacker tries on T's path home, from ``rho`` to ``S`` (after the lead point)."""

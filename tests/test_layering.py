@@ -1,6 +1,7 @@
 """Where things may live: the rules of the layout, checked on the source tree.
 
-SQL only in the store; no import cycles among league's modules or packages; no module
+SQL only in the store; no import cycles among the modules of ``envs/`` and ``league/`` or league's
+packages (an import under ``if TYPE_CHECKING`` counts); no module
 imports a command (the modules at the top of ``league/`` with a ``__main__`` block);
 ``league/core/`` without Ray or torch; the league's decision module (``league/core/league.py``) without
 the store, Ray or RLlib; ``ray.rllib`` only in ``league/rllib/``; who won only in
@@ -79,26 +80,28 @@ def module_name(root: Path, path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def league_modules(root: Path) -> dict[str, Path]:
-    return {module_name(root, p): p for p in sorted((root / "league").rglob("*.py"))}
+def league_modules(root: Path, packages: tuple[str, ...] = ("league",)) -> dict[str, Path]:
+    return {module_name(root, p): p for package in packages for p in sorted((root / package).rglob("*.py"))}
 
 
 def imports_of(path: Path, modules: set[str]) -> set[str]:
     """Every module ``path`` imports, at module level or inside a function; ``from P import m``
-    counts as importing ``P.m`` where that is a module."""
+    counts as importing ``P.m`` where that is a module (and ``P`` only where a name is not)."""
     found: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.Import):
             found |= {alias.name for alias in node.names}
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            found.add(node.module)
-            found |= {f"{node.module}.{alias.name}" for alias in node.names if f"{node.module}.{alias.name}" in modules}
+            submodules = {f"{node.module}.{alias.name}" for alias in node.names} & modules
+            found |= submodules
+            if len(submodules) < len(node.names):  # something taken from the package's ``__init__``
+                found.add(node.module)
     return found
 
 
 def import_graph(root: Path) -> dict[str, set[str]]:
-    """League module -> the league modules it imports (a package's ``__init__`` counts only when named)."""
-    modules = league_modules(root)
+    """Module of ``envs/`` or ``league/`` -> those it imports (a package's ``__init__`` counts only when named)."""
+    modules = league_modules(root, ("envs", "league"))
     return {name: (imports_of(path, set(modules)) & set(modules)) - {name} for name, path in modules.items()}
 
 
@@ -176,9 +179,18 @@ def test_the_cycle_scan_finds_a_planted_circle(tmp_path):
         "league/reproduce.py": "from league.reports.data import PAPER_TABLE_1\n",
         "league/reports/data.py": "from league.analysis import exploitability\n",
         "league/reports/plots.py": "from league.reports.data import PAPER_TABLE_1\n",  # within a package: fine
+        "envs/__init__.py": "",
+        "envs/scripted.py": "from envs.theory_players import attacker_apollonius\n",
+        "envs/theory_players.py": "if TYPE_CHECKING:\n    from envs.scripted import GameView\n",
     })
-    assert cycles(import_graph(root)) == [["league.analysis.exploitability", "league.reports.data", "league.reproduce"]]
-    assert cycles(package_graph(import_graph(root))) == [["league.analysis", "league.reports", "league.reproduce"]]
+    assert cycles(import_graph(root)) == [
+        ["envs.scripted", "envs.theory_players"],
+        ["league.analysis.exploitability", "league.reports.data", "league.reproduce"],
+    ]
+    assert cycles(package_graph(import_graph(root))) == [
+        ["envs.scripted", "envs.theory_players"],
+        ["league.analysis", "league.reports", "league.reproduce"],
+    ]
 
 
 def test_no_module_imports_a_command():
