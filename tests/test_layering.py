@@ -80,7 +80,8 @@ def module_name(root: Path, path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def league_modules(root: Path, packages: tuple[str, ...] = ("league",)) -> dict[str, Path]:
+def modules_of(root: Path, packages: tuple[str, ...]) -> dict[str, Path]:
+    """Module name -> file, for every module under the top-level ``packages``."""
     return {module_name(root, p): p for package in packages for p in sorted((root / package).rglob("*.py"))}
 
 
@@ -101,7 +102,7 @@ def imports_of(path: Path, modules: set[str]) -> set[str]:
 
 def import_graph(root: Path) -> dict[str, set[str]]:
     """Module of ``envs/`` or ``league/`` -> those it imports (a package's ``__init__`` counts only when named)."""
-    modules = league_modules(root, ("envs", "league"))
+    modules = modules_of(root, ("envs", "league"))
     return {name: (imports_of(path, set(modules)) & set(modules)) - {name} for name, path in modules.items()}
 
 
@@ -217,7 +218,7 @@ def external_imports(root: Path, prefix: str, under: str) -> list[str]:
     inside = under.endswith("!")
     under = under.rstrip("!")
     found = []
-    for name, path in league_modules(root).items():
+    for name, path in modules_of(root, ("league",)).items():
         if (name == under or name.startswith(under + ".")) != inside:
             continue
         for imported in imports_of(path, set()):
