@@ -143,10 +143,10 @@ def markdown_table(out: str, header: str) -> tuple[list[str], list[list[str]]]:
     return table[0], table[2:end]  # the header, past its rule the rows
 
 
-def test_evaluate_cli_prints_pairs_and_the_method_table(tiny_run, capsys):
-    assert evaluate_main(["--run-dir", str(tiny_run), "--episodes", "30", "--workers", "0"]) == 0
+def test_evaluate_cli_prints_pairs_and_the_method_table(run_copy, capsys):
+    assert evaluate_main(["--run-dir", str(run_copy), "--episodes", "30", "--workers", "0"]) == 0
     out = capsys.readouterr().out
-    store = LeagueStore(tiny_run)
+    store = LeagueStore(run_copy)
     try:
         names = {p.id: p.name for p in store.players()}
         recorded = {}  # (attacker, team) -> {outcome: games}: each pair's newest evaluation
@@ -177,7 +177,7 @@ def test_evaluate_cli_prints_pairs_and_the_method_table(tiny_run, capsys):
         against = teams if column == "league pool" else [column]
         pooled = sum(wins[("attacker-m2-v1", team)] for team in against) / (30 * len(against))
         assert cell.split()[0] == f"{pooled:.3f}", (column, cell)
-    assert evaluate_main(["--run-dir", str(tiny_run), "--players", "nobody"]) == 2
+    assert evaluate_main(["--run-dir", str(run_copy), "--players", "nobody"]) == 2
 
 
 def test_training_wrote_evaluations_every_k_iterations(tiny_run):
@@ -206,9 +206,9 @@ def test_training_wrote_evaluations_every_k_iterations(tiny_run):
     assert frozen == {last}
 
 
-def test_report_holds_the_expected_files(tiny_run):
-    assert report_main(["--run-dir", str(tiny_run)]) == 0
-    report = tiny_run / "report"
+def test_report_holds_the_expected_files(run_copy):
+    assert report_main(["--run-dir", str(run_copy)]) == 0
+    report = run_copy / "report"
     text = (report / "report.md").read_text()
     assert "Table 1 analogue" in text and "| 2 | attacker-m2-v1 |" in text and "0.6253" in text
     for name in ("payoff.png", "ratings.png", "win_rates.png", "returns.png", "curves.png"):

@@ -2,6 +2,7 @@
 
 import html
 import re
+import shutil
 import sqlite3
 
 import matplotlib.pyplot as plt
@@ -76,9 +77,12 @@ def test_progress_log_is_one_plain_line_per_iteration_under_its_own_phase(tiny_r
 
 
 @pytest.fixture(scope="module")
-def report_dir(tiny_run):
-    build_report(tiny_run)
-    return tiny_run / "report"
+def report_dir(tiny_run, tmp_path_factory):
+    """The report of a copy of the tiny run (the run is shared: a report inside it would be in every copy made after)."""
+    run = tmp_path_factory.mktemp("report") / "run"
+    shutil.copytree(tiny_run, run)
+    build_report(run)
+    return run / "report"
 
 
 def test_report_page_is_self_contained_with_a_3d_scene_per_shown_game(report_dir):
