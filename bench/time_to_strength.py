@@ -26,6 +26,7 @@ times to criterion that can be compared.
 from __future__ import annotations
 
 import argparse
+import sys
 from itertools import accumulate
 from pathlib import Path
 
@@ -34,7 +35,7 @@ import numpy as np
 from envs.scripted import PAPER_TEAM
 from league.analysis.statistics import wilson_interval
 from league.evaluation.learning_curves import Curve, GameStats, read_curves
-from league.state.run_dir import open_run
+from league.state.run_dir import RunDirError, open_run
 
 PAPER_TEAM_NAME = f"scripted-{PAPER_TEAM['targeter']}+{PAPER_TEAM['defender']}"
 
@@ -92,14 +93,18 @@ def measure(run_dir: Path, criterion: str) -> tuple[dict[str, tuple[int, int, fl
     return found, elapsed[max(elapsed)]
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run-dirs", type=Path, nargs="+", required=True, help="finished runs of one config, one per seed")
     parser.add_argument("--criterion", choices=("protocol", "league"), required=True)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    try:
+        measured = [(run_dir, *measure(run_dir, args.criterion)) for run_dir in args.run_dirs]
+    except RunDirError as err:
+        print(f"error: --run-dirs: {err}", file=sys.stderr)
+        return 2
     times, steps = [], []
-    for run_dir in args.run_dirs:
-        found, total = measure(run_dir, args.criterion)
+    for run_dir, found, total in measured:
         cells = [f"{name} {'never' if at is None else f'at {at[0]:,} env steps of its own'}" for name, at in found.items()]
         last = None if any(at is None for at in found.values()) else max(found.values(), key=lambda at: at[2])
         times.append(None if last is None else last[2])
@@ -115,6 +120,8 @@ def main() -> None:
               f"over {len(reached)} of {len(times)} runs")
     else:
         print(f"time to criterion: never reached in {len(times)} runs")
+    return 0
+
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
