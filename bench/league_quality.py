@@ -41,8 +41,9 @@ training, curve or tuning played:
 
 Writes ``OUT/league_quality.md``. Each run is a Ray Tune trial (``league.studies.trials``),
 ``--jobs`` at a time, or on the Ray cluster at ``--address`` (``--cpus-per-run`` CPUs each;
-OUT on storage every node shares); the measurements and best responses then run on this
-machine, one at a time. Run again, the same command reuses finished runs (and resumes
+OUT on storage every node shares); the measurements then run on this machine, and the best
+responses too, those of ``--jobs`` runs at a time (one run's one after another: ``league.exploit``
+holds its run directory's lock). Run again, the same command reuses finished runs (and resumes
 unfinished ones), the recorded test games and the best responses whose results it kept
 (``OUT/ARM/seed-S/exploitability/*.json``, one ``league.exploit --json`` output per call).
 
@@ -56,6 +57,7 @@ from __future__ import annotations
 import shlex
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -222,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=count(1), default=1000, help="test games per pair (default 1000)")
     parser.add_argument("--sides", nargs="+", default=list(SIDES), choices=SIDES, help="whose exploitability to measure")
     parser.add_argument("--jobs", type=count(1), help="runs trained side by side (default: 1; with --address: as many as "
-                        "the cluster's CPUs hold)")
+                        "the cluster's CPUs hold), and runs whose best responses train side by side here (default: 1)")
     parser.add_argument("--address", help="train the runs as Tune trials on this Ray cluster (OUT on shared storage)")
     parser.add_argument("--cpus-per-run", type=float, default=2.0, help="CPUs Ray reserves per run (default 2)")
     args = parser.parse_args(argv)
@@ -267,11 +269,13 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str
             print(f"measuring {arm}, seed {seed} on {args.episodes} test games per pair", flush=True)
             scripted_cells[arm, seed] = against_scripted(finals[arm, seed], args.episodes)
         crossed[seed] = cross_play({arm: finals[arm, seed] for arm in args.arms}, game, args.episodes)
-    for side in args.sides:
-        for (arm, seed), final in finals.items():
-            for target in TARGETS:
-                name = final.players[side].name if target == "final" else f"nash-{side}"
-                found[arm, seed, side, target] = exploited_in(final.run_dir, name, side, args)
+    def exploit_run(final: Finals) -> dict[tuple[str, str], Exploited]:
+        return {(side, target): exploited_in(final.run_dir, final.players[side].name if target == "final" else f"nash-{side}",
+                                             side, args) for side in args.sides for target in TARGETS}
+
+    with ThreadPoolExecutor(max_workers=args.jobs or 1) as pool:  # each best response is a process of its own
+        for (arm, seed), of_run in zip(finals, pool.map(exploit_run, finals.values())):
+            found.update({(arm, seed, side, target): e for (side, target), e in of_run.items()})
     any_run = finals[args.arms[0], args.seeds[0]]
     per_side = args.phases // 2 * args.phase_env_steps
     lines = [

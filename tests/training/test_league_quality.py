@@ -4,6 +4,7 @@ everything when run again."""
 
 import argparse
 import json
+import threading
 
 import pytest
 
@@ -85,7 +86,16 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
 
     from league.studies import exploitation
 
-    monkeypatch.setattr(exploitation, "run_exploit", exploit_here)  # a process each costs the test 10 s
+    # In this process (a process each costs the test 10 s), so one at a time: the module's one Ray instance. The
+    # runs' threads (--jobs 2) each take a run's best responses; the runs they came from are checked below.
+    one_at_a_time, exploiting = threading.Lock(), []
+
+    def exploit_in_turn(argv):
+        with one_at_a_time:
+            exploiting.append((threading.get_ident(), argv[argv.index("--run-dir") + 1]))
+            return exploit_here(argv)
+
+    monkeypatch.setattr(exploitation, "run_exploit", exploit_in_turn)
     (tmp_path / "tiny.yaml").write_text(TINY)
     out = tmp_path / "study"
     argv = ["--config", str(tmp_path / "tiny.yaml"), "--out", str(out), "--arms", "protocol", "league-do",
@@ -94,6 +104,11 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
     assert league_quality.main(argv) == 0
     said = capsys.readouterr().out
     page = (out / "league_quality.md").read_text()
+    threads = {}
+    for thread, run_dir in exploiting:
+        threads.setdefault(run_dir, set()).add(thread)
+    assert len(threads) == 2 and all(len(t) == 1 for t in threads.values())  # a run's best responses in one thread,
+    assert len(set.union(*threads.values())) == 2  # the two runs' in two (--jobs 2)
     assert said.endswith(page + "\n") and len(page.splitlines()) < 200
     assert "python bench/league_quality.py " + " ".join(argv) in page
     assert "settings chosen on seeds 0 1 2" in page and "6 held-out test games" in page
@@ -150,7 +165,7 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
     # Again: every run, test game and best response reused; the same page.
     kept = {p: p.stat().st_mtime_ns for p in out.rglob("*.json") if "exploitability" in p.parts}
     assert league_quality.main(argv) == 0
-    said = capsys.readouterr().out
-    assert "study: 2 of 2 runs done (2 reused)" in said and "exploiting" not in said
+    said, progress = capsys.readouterr()
+    assert "study: 2 of 2 runs done (2 reused)" in said and "exploiting" not in progress
     assert (out / "league_quality.md").read_text() == page
     assert {p: p.stat().st_mtime_ns for p in kept} == kept
