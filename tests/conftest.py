@@ -20,8 +20,8 @@ evaluation: {episodes: 10, every_iterations: 2, curve_every_env_steps: 300, curv
 
 
 @pytest.fixture(scope="session")
-def tiny_run(tmp_path_factory):
-    """A finished two-phase self-play run (attacker-m2-v0/v1, team-v0/v1), made once per session."""
+def tiny_run_once(tmp_path_factory):
+    """The tiny run, trained once per test process; tests take it through ``tiny_run``."""
     base = tmp_path_factory.mktemp("tiny_run")
     (base / "tiny.yaml").write_text(TINY_RUN)
     run = base / "run"
@@ -34,11 +34,36 @@ def tiny_run(tmp_path_factory):
     return run
 
 
+def tree_state(root):
+    """Every file under ``root`` with its size and modification time: what a write changes.
+
+    A reader of league.db leaves SQLite's shared-memory index and an empty write-ahead log
+    while its connection is open; only a log with frames in it is a write."""
+    state = {}
+    for path in sorted(root.rglob("*")):
+        stat = path.stat()
+        if path.is_file() and not path.name.endswith("-shm") and not (path.name.endswith("-wal") and stat.st_size == 0):
+            state[str(path.relative_to(root))] = (stat.st_size, stat.st_mtime_ns)
+    return state
+
+
 @pytest.fixture
-def run_copy(tiny_run, tmp_path):
+def tiny_run(tiny_run_once):
+    """A finished two-phase self-play run (attacker-m2-v0/v1, team-v0/v1), shared by the tests
+    of this process: a test that writes into it errors at teardown (take ``run_copy`` to change
+    a run), so that no test's result depends on which tests ran before it."""
+    before = tree_state(tiny_run_once)
+    yield tiny_run_once
+    after = tree_state(tiny_run_once)
+    changed = sorted(name for name in before.keys() | after.keys() if before.get(name) != after.get(name))
+    assert not changed, f"this test wrote into the shared tiny run (use run_copy): {changed}"
+
+
+@pytest.fixture
+def run_copy(tiny_run_once, tmp_path):
     """A copy of the tiny run that a test may change."""
     copy = tmp_path / "run"
-    shutil.copytree(tiny_run, copy)
+    shutil.copytree(tiny_run_once, copy)
     return copy
 
 

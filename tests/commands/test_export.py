@@ -20,7 +20,7 @@ from league.evaluation.engine import LearnedAgent, load_module
 REPO = Path(__file__).resolve().parents[2]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def run_dir(tiny_run):
     return tiny_run
 

@@ -47,13 +47,13 @@ def players_of(run_dir):
 
 
 @pytest.fixture(scope="module")
-def mixed_run(tiny_run, tmp_path_factory):
+def mixed_run(tiny_run_once, tmp_path_factory):
     """A copy of the tiny run whose dev-game results of every frozen pair are ``MIXED_PAYOFF`` (the
     scripted attacker wins 0.3, the scripted team loses 0.9)."""
     import shutil
 
     run_dir = tmp_path_factory.mktemp("mixed") / "run"
-    shutil.copytree(tiny_run, run_dir)
+    shutil.copytree(tiny_run_once, run_dir)
     store = LeagueStore(run_dir)
     by_name = {p.name: p for p in store.players()}
     attackers = ["attacker-m2-v0", "attacker-m2-v1", "scripted-lead_intercept"]

@@ -77,10 +77,10 @@ def test_progress_log_is_one_plain_line_per_iteration_under_its_own_phase(tiny_r
 
 
 @pytest.fixture(scope="module")
-def report_dir(tiny_run, tmp_path_factory):
+def report_dir(tiny_run_once, tmp_path_factory):
     """The report of a copy of the tiny run (the run is shared: a report inside it would be in every copy made after)."""
     run = tmp_path_factory.mktemp("report") / "run"
-    shutil.copytree(tiny_run, run)
+    shutil.copytree(tiny_run_once, run)
     build_report(run)
     return run / "report"
 
