@@ -13,10 +13,13 @@ configured), each from the same weights and optimizer state:
 Both take the same gradient steps (``tests/rllib/test_fast_path.py``); one process runs both, so
 a shared machine's load moves both alike. With ``--against bf16`` the first arm is instead
 ``bf16``: ``LeaguePPOLearner.update`` with ``ppo.bf16`` (float32 where the CPU has no native
-bf16; the bench says which).
+bf16; the bench says which); with ``--against compile`` it is ``compile``: ``LeaguePPOLearner.update``
+with ``ppo.compile_loss`` (its loss, forward and backward, under ``torch.compile``), whose
+first update compiles (its seconds printed).
 
     PYTHONPATH=. .venv/bin/python bench/learner_update.py --config attacker_method2 --rounds 8
     PYTHONPATH=. .venv/bin/python bench/learner_update.py --against bf16 --set 'ppo.team_hidden=[256, 256]'
+    PYTHONPATH=. .venv/bin/python bench/learner_update.py --against compile --config selfplay_league
 
 ``--profile FILE`` writes a cProfile of the ``league`` rounds. The last line reads ``league
 L s, rllib R s, league/rllib Q (medians of N rounds; CPU: ...)``: wall seconds, and the CPU
@@ -37,7 +40,7 @@ import torch
 from league.config import load_config
 from league.core.players import Player
 from league.core.match_plan import MatchPlan
-from league.rllib.algorithm import minibatch_size, training_batch
+from league.rllib.algorithm import COMPILED_LOSS, minibatch_size, training_batch
 from league.rllib.bridge import build_config, set_trainable
 from league.rllib.compat import native_bf16
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
@@ -52,8 +55,8 @@ def main() -> None:
     parser.add_argument("--config", default="attacker_method2")
     parser.add_argument("--rounds", type=int, default=8)
     parser.add_argument("--profile", default=None, help="write a cProfile of the league rounds here")
-    parser.add_argument("--against", choices=["rllib", "bf16"], default="rllib",
-                        help="the other arm: RLlib's update, or ours with ppo.bf16")
+    parser.add_argument("--against", choices=["rllib", "bf16", "compile"], default="rllib",
+                        help="the other arm: RLlib's update, ours with ppo.bf16, or ours with its loss compiled")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -80,6 +83,7 @@ def main() -> None:
                 group["foreach"] = arm != "rllib"  # RLlib's Adam steps tensor by tensor
             team = learner.module[TEAM.name]
             team.settings = team.settings.model_copy(update={"bf16": arm == "bf16"})
+            learner.config.learner_config_dict[COMPILED_LOSS] = arm == "compile"
             method = PPOTorchLearner.update if arm == "rllib" else type(learner).update
             fresh = training_batch([data], env_steps=config.total_train_batch_size)  # RLlib's shuffles it in place
             if profiler and arm == "league":
@@ -100,7 +104,8 @@ def main() -> None:
 
         arms = (args.against, "league")
         for arm in arms:  # warm-up
-            update(arm)
+            wall, _ = update(arm)
+            print(f"{arm}: first update {wall:.1f} s" + (" (compiling)" if arm == "compile" else ""))
         times = {arm: [] for arm in arms}
         for _ in range(args.rounds):
             for arm in arms:

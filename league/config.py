@@ -115,6 +115,10 @@ class PPOSettings(Strict):
     bf16: bool = False
     """The learner's forward and backward passes in bfloat16 where the CPU has it natively, else float32; it pays at
     wide networks only ([performance.md](performance.md)). Needs ``resources.sampler: fast``."""
+    compile_loss: bool = False
+    """The learner's loss, forward and backward, under ``torch.compile`` where torch finds the C++ compiler it builds
+    kernels with, else eager; each trained module's first update compiles (seconds). What it pays:
+    [speed.md](results/speed.md). Needs ``resources.sampler: fast``."""
 
     def minibatch(self, side: Side) -> int:
         """Rows per minibatch of the ``side`` learner's updates."""
@@ -362,7 +366,8 @@ class RunConfig(Strict):
             raise ValueError("ppo.minibatch_counts: env_steps needs resources.sampler: fast (RLlib's PPO has one minibatch size)")
         if self.ppo.team_reward != "own" and self.resources.sampler != "fast":
             raise ValueError("ppo.team_reward: shared needs resources.sampler: fast (RLlib's learner pays each agent its own reward)")
-        for key in ("targeter_shaping", "defender_shaping", "attacker_win_reward", "attacker_residual_penalty", "bf16"):
+        for key in ("targeter_shaping", "defender_shaping", "attacker_win_reward", "attacker_residual_penalty", "bf16",
+                    "compile_loss"):
             if getattr(self.ppo, key) and self.resources.sampler != "fast":
                 raise ValueError(f"ppo.{key} needs resources.sampler: fast (RLlib's learner connectors would not apply it)")
         if self.resources.sample_ahead and (self.resources.num_env_runners < 1 or self.resources.sampler != "fast"):

@@ -35,6 +35,8 @@ def write(tmp_path, text):
         ("name: x\nppo: {attacker_win_reward: 70}\nresources: {sampler: standard}\n", "attacker_win_reward"),
         ("name: x\nppo: {team_reward: shared}\nresources: {sampler: standard}\n", "team_reward"),
         ("name: x\nppo: {bf16: true}\nresources: {sampler: batched}\n", "bf16"),  # RLlib's own loss has no autocast
+        ("name: x\nppo: {compile_loss: true}\nresources: {sampler: standard}\n", "ppo.compile_loss needs resources.sampler: fast"),
+        ("name: x\nppo: {compile_loss: sometimes}\n", "ppo.compile_loss"),
         ("name: x\nppo: {team_reward: mine}\n", "ppo.team_reward"),
         ("name: x\nleague: {frozen_players_explore: false}\nresources: {sampler: standard}\n", "frozen_players_explore"),
         ("name: x\nppo: {lr_schedule: [[100, 0.001]]}\n", "lr_schedule"),

@@ -213,6 +213,7 @@ def env_steps_of(sampled: list[tuple[Any, dict[str, Any]]]) -> int:
 
 MINIBATCH_SIZES = "league_minibatch_sizes"  # `learner_config_dict` key: learner module id -> rows per minibatch
 SAMPLE_AHEAD = "league_sample_ahead"  # `learner_config_dict` key: `resources.sample_ahead`
+COMPILED_LOSS = "league_compiled_loss"  # `learner_config_dict` key: `ppo.compile_loss`, where torch can compile
 RESIDUAL_PENALTIES = "league_residual_penalties"  # `learner_config_dict` key: learner module id -> `ppo.attacker_residual_penalty`
 RESIDUAL_PENALTY_GATED = "league_residual_penalty_gated"  # `learner_config_dict` key: `ppo.attacker_residual_penalty_gate` not `always`
 

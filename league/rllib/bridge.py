@@ -30,7 +30,7 @@ from envs.single import action_space
 from league.config import RunConfig
 from league.core.match_plan import MatchPlan
 from league.core.players import NewPlayer, Player
-from league.rllib.algorithm import MINIBATCH_SIZES, RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, SAMPLE_AHEAD, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
+from league.rllib.algorithm import COMPILED_LOSS, MINIBATCH_SIZES, RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, SAMPLE_AHEAD, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
 from league.rllib.env_runner import BatchedEnvRunner, SeededEnvRunner, seed_iteration
 from league.rllib import compat
@@ -103,6 +103,11 @@ def learner_spec(run: RunConfig, side: str, reward_method: int | None = None) ->
 def learner_computes_in_bf16(run: RunConfig) -> bool:
     """Whether this process's learner runs its networks in bfloat16 (``PPOSettings.bf16``)."""
     return run.ppo.bf16 and compat.native_bf16()
+
+
+def learner_compiles_loss(run: RunConfig) -> bool:
+    """Whether this process's learner runs its loss compiled (``PPOSettings.compile_loss``)."""
+    return run.ppo.compile_loss and compat.inductor_compiler_found()
 
 
 def scripted_spec(run: RunConfig, agent: str, name: str) -> RLModuleSpec:
@@ -199,6 +204,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             learner_config_dict={
                 MINIBATCH_SIZES: {p.name: ppo.minibatch(p.side) for p in players if p.trains},
                 SAMPLE_AHEAD: res.sample_ahead,
+                COMPILED_LOSS: learner_compiles_loss(run),
                 RESIDUAL_PENALTIES: {p.name: ppo.attacker_residual_penalty for p in players if p.trains and p.side == "attacker"},
                 RESIDUAL_PENALTY_GATED: ppo.attacker_residual_penalty_gate != "always",
             },

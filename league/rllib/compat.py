@@ -36,6 +36,17 @@ def native_bf16() -> bool:
     return torch.cpu._is_amx_tile_supported() or torch.cpu._is_avx512_bf16_supported()
 
 
+def inductor_compiler_found() -> bool:
+    """Whether ``torch.compile``'s CPU backend finds the C++ compiler it builds its kernels with."""
+    from torch._inductor.cpp_builder import get_cpp_compiler
+
+    try:
+        get_cpp_compiler()
+    except Exception:  # torch raises its own errors for a compiler that is missing or unusable
+        return False
+    return True
+
+
 # ---------------------------------------------------------------- Ray core (joining a cluster: league/cluster.py)
 def gcs_address(address: str) -> str:
     """``host:port`` of the GCS that ``address`` names (``auto`` resolved), as ``ray.init`` resolves

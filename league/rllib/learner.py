@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -11,7 +12,7 @@ import torch
 from league.rllib import compat
 from league.rllib.flat_adam import FlatAdam
 from league.rllib.modules import ActorCriticModule
-from league.rllib.algorithm import RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, SAMPLE_AHEAD
+from league.rllib.algorithm import COMPILED_LOSS, RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, SAMPLE_AHEAD
 from league.rllib.ppo_loss import LossRows, PPOCoefficients, anchor_at_learner, loss_stats, ppo_loss
 from league.rollout.train_batch import minibatch_rows
 from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
@@ -29,6 +30,15 @@ class ClippedStep:
     name: str
     optimizer: Any
     flat: FlatAdam | None
+
+
+@functools.cache
+def compiled_ppo_loss() -> Any:
+    """``ppo_loss`` under ``torch.compile`` (``ppo.compile_loss``), made once per process; dynamo keeps a
+    graph per trained module, and floats (the KL and entropy coefficients) as inputs, not constants.
+    Static shapes: a shape's kernels do not depend on which shapes came first, so a resumed run
+    computes as the run never stopped."""
+    return torch.compile(ppo_loss, dynamic=False)
 
 
 def release(steps: list[ClippedStep] | None) -> None:
@@ -67,8 +77,8 @@ class LeaguePPOLearner(PPOTorchLearner):
     One result differs: RLlib logs a gradient norm of 0.0 for every module with an
     optimizer that was not in the update; this logs norms of trained modules only. Episodes
     (the standard sampler), several Learners and other modules take RLlib's ``update``.
-    (``build_config`` sets no ``torch.compile``, grad scaler or torch lr scheduler, which
-    this update does not know.)
+    (``build_config`` sets no RLlib ``torch.compile``, grad scaler or torch lr scheduler, which
+    this update does not know; ``ppo.compile_loss`` compiles this update's loss, ``compiled_ppo_loss``.)
 
     It also clocks its own updates: RLlib's ``learner_update_timer`` is an exponential
     average over iterations (coefficient 0.01), so it mostly repeats the first iteration.
@@ -149,6 +159,7 @@ class LeaguePPOLearner(PPOTorchLearner):
         inputs = {m: LossRows(batch.policy_batches[m], self.device) for m in modules}
         coefficients = {m: self._ppo_coefficients(m) for m in modules}
         bf16 = {m: self.module[m].settings.bf16 and compat.native_bf16() for m in modules}  # `PPOSettings.bf16`
+        loss_of = compiled_ppo_loss() if self.config.learner_config_dict.get(COMPILED_LOSS) else ppo_loss
         if self.config.learner_config_dict.get(SAMPLE_AHEAD):  # sampled by the policy one update older
             for m in modules:
                 anchor_at_learner(inputs[m], self.module[m], bf16[m])
@@ -167,7 +178,7 @@ class LeaguePPOLearner(PPOTorchLearner):
             for n, rows in enumerate(minibatches, start=1):
                 last = n == len(minibatches)  # RLlib's statistics keep the last minibatch's only (window 1)
                 for m in modules:
-                    loss_per_module[m], terms = ppo_loss(self.module[m], inputs[m].take(rows[m]), coefficients[m], bf16[m])
+                    loss_per_module[m], terms = loss_of(self.module[m], inputs[m].take(rows[m]), coefficients[m], bf16[m])
                     if last:
                         self.metrics.log_dict(loss_stats(terms), key=m, window=1)
                 for p in trained:

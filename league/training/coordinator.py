@@ -96,6 +96,10 @@ class Coordinator:
         if self.run.ppo.bf16:
             self.log("ppo.bf16: the learner's networks compute in bfloat16" if bridge.learner_computes_in_bf16(self.run)
                      else "ppo.bf16: this CPU has no native bfloat16 matmuls; the learner computes in float32")
+        if self.run.ppo.compile_loss:
+            self.log("ppo.compile_loss: the learner's loss is compiled at each trained module's first update"
+                     if bridge.learner_compiles_loss(self.run)
+                     else "ppo.compile_loss: torch finds no C++ compiler to build kernels with; the loss runs eagerly")
         self.set_trainable()
         self.add_due_oracles(stop)  # (a run resumed between a phase's end and its oracle)
         while not self.state.training_done:

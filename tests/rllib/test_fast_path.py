@@ -12,7 +12,7 @@ from envs.agents import AGENTS, Outcome
 from envs.observations import GLOBAL_STATE_SIZE, interception_distance, terminal_distance
 from league.core.match_plan import MatchPlan
 from league.rllib import learner as learner_module
-from league.rllib.algorithm import MINIBATCH_SIZES, RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, LeaguePPO, training_batch
+from league.rllib.algorithm import COMPILED_LOSS, MINIBATCH_SIZES, RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, LeaguePPO, training_batch
 from league.rllib.bridge import build_config, episode_outcomes, learner_settings, learner_spec, set_trainable
 from league.rollout.train_batch import gae, minibatch_rows
 from league.rollout.training_reward import potential_shaping
@@ -550,3 +550,26 @@ def test_bf16_where_native_runs_the_team_networks_in_bf16_and_stays_near_float32
     # here; ~2e-5 seen). Weights kept in bf16 would lose the steps (their ulp ~4e-3 > lr).
     steps = reported[TEAM.name]["num_module_steps_trained"] / 128
     assert max(differences.values()) < RUN.ppo.lr / 16 * steps, differences
+
+
+def test_the_compiled_loss_trains_as_rllibs_update_up_to_float32_rounding(algo):
+    """``ppo.compile_loss``: our update with its loss under ``torch.compile`` against RLlib's, from the same state."""
+    def compile_loss(on):
+        def set_it(learner):
+            learner.config.learner_config_dict[COMPILED_LOSS] = on
+
+        [call.get() for call in algo.learner_group.foreach_learner(set_it)]
+
+    graphs = torch._dynamo.utils.counters["stats"]["unique_graphs"]  # the local Learner runs in this process
+    compile_loss(True)
+    try:
+        (ours, _), (rllib, _) = compare_updates(algo)
+    finally:
+        compile_loss(False)
+    assert torch._dynamo.utils.counters["stats"]["unique_graphs"] > graphs  # the loss ran compiled
+    for module_id in (ATTACKER.name, TEAM.name):
+        differences = {name: np.abs(ours[module_id][name] - weight).max() for name, weight in rllib[module_id].items()}
+        largest = max(np.abs(weight).max() for weight in rllib[module_id].values())
+        # The compiled kernels fuse the loss's operations and sum in another order: float32 rounding,
+        # carried through 2 updates of 3 epochs; within ten float32 ulps of the largest weight (< 1 seen).
+        assert max(differences.values()) <= 10 * np.finfo(np.float32).eps * largest, (module_id, differences)
