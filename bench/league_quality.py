@@ -39,7 +39,8 @@ training, curve or tuning played:
    bound). Over the training seeds, per arm: the mean with its Student-t 95% interval, and the
    paired t-test over the training seeds of the arm minus ``league``.
 
-Writes ``OUT/league_quality.md``. Each run is a Ray Tune trial (``league.studies.trials``),
+Writes ``OUT/league_quality.md`` and its figure ``OUT/league_quality.png`` (each seed's exploitability per arm,
+and the arm's mean with its interval). Each run is a Ray Tune trial (``league.studies.trials``),
 ``--jobs`` at a time, or on the Ray cluster at ``--address`` (``--cpus-per-run`` CPUs each;
 OUT on storage every node shares); the measurements then run on this machine, and the best
 responses too, those of ``--jobs`` runs at a time (one run's one after another: ``league.exploit``
@@ -249,7 +250,8 @@ def main(argv: list[str] | None = None) -> int:
     if code := training_exit_code(list(runs.values()), args.out, args.jobs, args.cpus_per_run, args.address):
         return code
     try:
-        page = measure(args, {key: run.run_dir for key, run in runs.items()}, argv if argv is not None else sys.argv[1:])
+        page = measure(args, {key: run.run_dir for key, run in runs.items()}, argv if argv is not None else sys.argv[1:],
+                       args.out / "league_quality.png")
     except subprocess.CalledProcessError as err:
         print(f"error: {shlex.join(err.cmd)} failed (exit {err.returncode}); run this command again to resume",
               file=sys.stderr)
@@ -259,8 +261,8 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str:
-    """Play and exploit every run's final players (reusing what earlier calls kept); the page."""
+def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str], figure: Path) -> str:
+    """Play and exploit every run's final players (reusing what earlier calls kept); the page, and its ``figure``."""
     finals = {key: Finals.of(run_dir) for key, run_dir in run_dirs.items()}
     game = read_config(run_dirs[args.arms[0], args.seeds[0]]).game  # every arm plays the same game (arm_overrides)
     scripted_cells, crossed, found = {}, {}, {}
@@ -289,8 +291,10 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str
         f"team, {args.team_br_env_steps:,} against an attacker (`league.exploit --games test`); margin: over the best "
         "league member of the other side (chosen on the dev games); flat: learning curves flat over the last third "
         f"of the budget (else the figure is a lower bound). Over seeds: {SEED_INTERVAL}, paired t-test minus `league`.",
-        "", "```", "python bench/league_quality.py " + shlex.join(argv), "```",
+        "", "```", "python bench/league_quality.py " + shlex.join(argv), "```", "",
+        f"![Each seed's exploitability per arm, with the arm's mean and interval]({figure.name})",
     ]
+    exploitability = {}  # (side, target) -> arm -> seed -> the best responses' mean win rate
     for side in args.sides:
         other = other_side(side)
         titles = [p.name.removeprefix("scripted-") for p in any_run.scripted[other]] + [f"{a}'s {other}" for a in args.arms]
@@ -316,6 +320,7 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str
             print(lines[-1], flush=True)
         values = {target: {arm: {seed: found[arm, seed, side, target].mean for seed in args.seeds} for arm in args.arms}
                   for target in TARGETS}
+        exploitability.update({(side, target): values[target] for target in TARGETS})
         lines += ["", f"Over training seeds ({SEED_INTERVAL}; minus `{REFERENCE_ARM}`: the mean of the per-seed "
                   "differences, above 0 more exploitable, and the paired t-test's p):", "",
                   "| arm | final: exploitability | minus league | Nash mixture: exploitability | minus league |",
@@ -323,7 +328,36 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str]) -> str
         lines += [f"| {arm} | " + " | ".join(c for target in TARGETS for c in over_seeds(values[target], arm, args.seeds, args.arms))
                   + " |" for arm in args.arms]
     lines += ["", "Training:", ""] + [f"- {arm}, seed {seed}: {speed(d)}" for (arm, seed), d in run_dirs.items()]
+    exploitability_figure(exploitability, args.arms, args.seeds, figure)
     return "\n".join(lines) + "\n"
+
+
+def exploitability_figure(values: dict[tuple[str, str], dict[str, dict[int, float]]], arms: list[str], seeds: list[int],
+                          out: Path) -> None:
+    """A panel per exploited side and target: each seed's best-response win rate per arm (dots), the arm's mean (bar)
+    with its interval over seeds."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(values), figsize=(5 * len(values), 3.6), squeeze=False)
+    x = np.arange(len(arms))
+    for ax, ((side, target), by_arm) in zip(axes[0], values.items()):
+        for i, arm in enumerate(arms):
+            rates = [by_arm[arm][s] for s in seeds]
+            ax.scatter(np.full(len(rates), i), rates, color="0.5", s=12, zorder=3)
+            mean = float(np.mean(rates))
+            low, high = mean_interval(rates) if len(rates) > 1 else (mean, mean)
+            ax.errorbar(i, mean, yerr=[[mean - low], [high - mean]], fmt="_", color="C0", markersize=18, capsize=4)
+        ax.set_xticks(x, arms)
+        ax.set_ylim(0, 1)
+        ax.set_ylabel("best responses' win rate (test games)")
+        ax.set_title(f"{'Nash mixture' if target == 'nash' else 'final snapshot'}: {side}")
+    fig.suptitle(f"exploitability per arm ({len(seeds)} training seeds; {SEED_INTERVAL})")
+    fig.tight_layout()
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
 
 
 if __name__ == "__main__":

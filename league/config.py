@@ -118,7 +118,7 @@ class PPOSettings(Strict):
     compile_loss: bool = False
     """The learner's loss, forward and backward, under ``torch.compile`` where torch finds the C++ compiler it builds
     kernels with, else eager; each trained module's first update compiles (seconds). What it pays:
-    [speed.md](results/speed.md). Needs ``resources.sampler: fast``."""
+    [performance.md](performance.md). Needs ``resources.sampler: fast``."""
 
     def minibatch(self, side: Side) -> int:
         """Rows per minibatch of the ``side`` learner's updates."""

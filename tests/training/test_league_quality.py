@@ -112,6 +112,7 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
     assert said.endswith(page + "\n") and len(page.splitlines()) < 200
     assert "python bench/league_quality.py " + " ".join(argv) in page
     assert "settings chosen on seeds 0 1 2" in page and "6 held-out test games" in page
+    assert "](league_quality.png)" in page and (out / "league_quality.png").stat().st_size > 0  # the page's figure
     lines = page.splitlines()
 
     for arm in ("protocol", "league-do"):
