@@ -93,9 +93,9 @@ class PPOSettings(Strict):
     team_hidden: list[Annotated[int, Field(ge=1)]] | None = Field(None, min_length=1)
     """Hidden layer sizes of the team's policy and value networks; ``None``: ``hidden``. What ``[256, 256]`` bought, at
     what cost: [learning.md](results/learning.md)."""
-    attacker_prior: Literal["none", "lead_intercept", "apollonius"] = "none"
+    attacker_prior: Literal["none", "lead_intercept"] = "none"
     """``lead_intercept``: the policy mean is lead intercept's turn plus the network's output, so the untrained attacker
-    plays lead intercept (``apollonius``: the Apollonius attacker's, ``envs.theory_players``); ``none``: the network's. Needs ``game.observation: rich``, ``game.action_mode: relative``."""
+    plays lead intercept; ``none``: the network's. Needs ``game.observation: rich``, ``game.action_mode: relative``."""
     team_prior: Literal["none", "straight+pure_pursuit", "avoid_attacker+pure_pursuit",
                         "avoid_oncoming_attacker+pure_pursuit"] = "none"
     """A scripted team (``envs.scripted``) whose turn plus the team's network output is its policy mean, so untrained it

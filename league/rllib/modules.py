@@ -10,8 +10,7 @@ Every agent's observation arrives with the env's 22-number global state appended
   global state their values differ, and a critic blind to the role can only learn their
   average, which biases both agents' advantages.
   With ``prior: lead_intercept`` (``PPOSettings.attacker_prior``) the actor is a
-  ``ResidualActor``: lead intercept's turn plus the network's output (``apollonius``: the
-  Apollonius attacker's, ``ApolloniusTurn``); with a scripted team as
+  ``ResidualActor``: lead intercept's turn plus the network's output; with a scripted team as
   ``prior`` (``PPOSettings.team_prior``), that team's turn for T or D plus the network's
   output (``ScriptedTeamTurn``). With
   ``heading_cosines`` (``PPOSettings.attacker_heading_cosines``) the actor's network reads
@@ -41,7 +40,6 @@ from envs.observations import (
     split_policy_input,
 )
 from envs.scripted import SHELTER_DISTANCE, act_from_state
-from envs.theory_players import APPROACH_CANDIDATES, PATH_POINTS
 from league.rllib.module_settings import ActorCriticSettings, ScriptedSettings
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
@@ -118,62 +116,11 @@ class LeadInterceptTurn(nn.Module):
         own = own.float()
         r = own[..., self.t : self.t + 3]  # T - A
         u = own[..., self.t_heading : self.t_heading + 3] * self.v_targeter  # T's velocity
-        return turn_toward(self.aim(r, u), own, self.max_yaw_change, self.max_pitch_change)
-
-    def aim(self, r: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """Where A meets T (at ``r`` from A, velocity ``u``), relative to A."""
         # envs.geometry.intercept_time: the positive root of |r + u t| = v_A t.
         ru = (r * u).sum(-1)
         margin = self.v_attacker**2 - (u * u).sum(-1)
         t = (ru + torch.sqrt(ru * ru + margin * (r * r).sum(-1))) / margin
-        return r + u * t.unsqueeze(-1)
-
-
-class ApolloniusTurn(nn.Module):
-    """The Apollonius attacker's action (``envs.theory_players.attacker_apollonius``) from the
-    attacker's ``rich`` observation alone (T, D and the terminal relative to A, T's heading, all in
-    A's yaw frame): A flies at the first aim point whose straight approach D does not cut off,
-    T's lead point, then points of T's straight path home from where A meets it to the terminal
-    sphere; with every approach cut off, at the first of the path home."""
-
-    def __init__(self, game: GameConfig):
-        super().__init__()
-        scale = game.position_scale  # lengths in the observation are divided by it
-        self.v_attacker, self.v_targeter, self.v_defender = game.v_attacker / scale, game.v_targeter / scale, game.v_defender / scale
-        self.attacker_radius, self.defender_radius = game.attacker_radius / scale, game.defender_radius / scale
-        self.terminal_radius = game.terminal_sphere_radius / scale
-        self.max_yaw_change, self.max_pitch_change = game.max_yaw_change, game.max_pitch_change
-        self.t, self.d, self.terminal = RICH_FIRST_OTHER, RICH_SECOND_OTHER, RICH_TERMINAL
-        self.t_heading = RICH_FIRST_OTHER + RICH_HEADING
-        self.lead = LeadInterceptTurn(game)
-        self.register_buffer("fractions", torch.linspace(0.0, 1.0, APPROACH_CANDIDATES), persistent=False)
-        self.register_buffer("steps", torch.linspace(1.0 / PATH_POINTS, 1.0, PATH_POINTS), persistent=False)
-
-    def forward(self, own: torch.Tensor) -> torch.Tensor:
-        own = own.float()
-        r, d = own[..., self.t : self.t + 3], own[..., self.d : self.d + 3]  # T - A, D - A
-        to_home = own[..., self.terminal : self.terminal + 3] - r  # the terminal - T
-        home_distance = torch.linalg.vector_norm(to_home, dim=-1)
-        home = to_home / home_distance.clamp_min(1e-12).unsqueeze(-1)
-        # envs.start_classes.region_radius: where A, flying straight, first captures T on T's path home.
-        k = self.v_targeter / self.v_attacker
-        a2 = 1.0 / (k * k) - 1.0
-        b = 2.0 * (self.attacker_radius / k - (r * home).sum(-1))
-        c = self.attacker_radius**2 - (r * r).sum(-1)
-        rho = torch.where(c < 0, (-b + torch.sqrt((b * b - 4.0 * a2 * c).clamp_min(0.0))) / (2.0 * a2), torch.zeros_like(c))
-        flight = (home_distance - self.terminal_radius).clamp_min(0.0)
-        first = torch.minimum(rho, flight)
-        along = first.unsqueeze(-1) + self.fractions * (flight - first).unsqueeze(-1)  # (..., K)
-        path_home = r.unsqueeze(-2) + along.unsqueeze(-1) * home.unsqueeze(-2)  # (..., K, 3)
-        u = own[..., self.t_heading : self.t_heading + 3] * self.v_targeter
-        aims = torch.cat((self.lead.aim(r, u).unsqueeze(-2), path_home), dim=-2)  # (..., 1 + K, 3)
-        path = self.steps.unsqueeze(-1) * aims.unsqueeze(-2)  # (..., 1 + K, P, 3): A -> aim, A at 0
-        d_time = (torch.linalg.vector_norm(path - d.unsqueeze(-2).unsqueeze(-2), dim=-1) - self.defender_radius) / self.v_defender
-        a_time = torch.linalg.vector_norm(path, dim=-1) / self.v_attacker
-        open_approach = (d_time > a_time).all(dim=-1)  # (..., 1 + K)
-        first_open = torch.argmax(open_approach.to(torch.int64), dim=-1)  # (the first maximum)
-        choice = torch.where(open_approach.any(dim=-1), first_open, torch.ones_like(first_open))
-        aim = torch.gather(aims, -2, choice.unsqueeze(-1).unsqueeze(-1).expand_as(aims[..., :1, :])).squeeze(-2)
+        aim = r + u * t.unsqueeze(-1)
         return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
 
 
@@ -260,7 +207,6 @@ class ResidualActor(nn.Module):
 # Named as in the config: ``ppo.attacker_prior``, ``ppo.team_prior``.
 PRIORS = {
     "lead_intercept": LeadInterceptTurn,
-    "apollonius": ApolloniusTurn,
     **{f"{targeter}+pure_pursuit": partial(ScriptedTeamTurn, targeter=targeter) for targeter in ScriptedTeamTurn.targeters},
 }
 

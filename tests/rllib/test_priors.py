@@ -57,15 +57,6 @@ def test_an_attacker_with_the_prior_and_a_silent_network_plays_lead_intercept():
     assert_plays(silence(attacker_with_prior(run)), run, turned_anywhere(run), ATTACKER, "lead_intercept")
 
 
-def test_an_attacker_with_the_apollonius_prior_and_a_silent_network_plays_the_apollonius_attacker():
-    run = load_config("selfplay_league", ["ppo.attacker_prior=apollonius"])
-    game = turned_anywhere(run)
-    assert_plays(silence(attacker_with_prior(run)), run, game, ATTACKER, "apollonius")
-    # Not lead intercept under another name: in some games D cuts off the lead point's approach.
-    assert (np.abs(ScriptedPlayer("attacker", "apollonius").act(game) - ScriptedPlayer("attacker", "lead_intercept").act(game))
-            > 1e-3).any(axis=1).mean() > 0.05
-
-
 def test_a_team_with_the_prior_and_a_silent_network_flies_t_home_and_d_at_a():
     run = load_config("selfplay_league", ["ppo.team_prior=straight+pure_pursuit"])
     team, game = silence(learner_spec(run, "team").build()), turned_anywhere(run)
@@ -157,11 +148,9 @@ def test_the_gated_penalty_weighs_only_the_steps_before_t_turns_away():
 
 
 @pytest.mark.parametrize("fmt", ["export", "torchscript", "onnx"])
-@pytest.mark.parametrize("side", ["attacker", "team", "apollonius attacker"])
+@pytest.mark.parametrize("side", ["attacker", "team"])
 def test_the_priors_and_the_heading_cosines_travel_in_every_export_format(tmp_path, fmt, side):
-    attacker_prior = "apollonius" if side == "apollonius attacker" else "lead_intercept"
-    side = side.split()[-1]
-    run = load_config("selfplay_league", [f"ppo.attacker_prior={attacker_prior}", "ppo.attacker_heading_cosines=true",
+    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept", "ppo.attacker_heading_cosines=true",
                                           "ppo.team_prior=avoid_oncoming_attacker+pure_pursuit"])
     module = learner_spec(run, side, reward_method=2 if side == "attacker" else None).build()
     rng = np.random.default_rng(1)
