@@ -34,10 +34,11 @@ class ClippedStep:
 
 @functools.cache
 def compiled_ppo_loss() -> Any:
-    """``ppo_loss`` under ``torch.compile`` (``ppo.compile_loss``), made once per process; dynamo keeps a
-    graph per trained module, and floats (the KL and entropy coefficients) as inputs, not constants.
-    Static shapes: a shape's kernels do not depend on which shapes came first, so a resumed run
-    computes as the run never stopped."""
+    """``ppo_loss`` under ``torch.compile`` (``ppo.compile_loss``), made once per process. Dynamo keeps a
+    graph per module structure and minibatch shape (the three attackers of a league share one); the
+    weights and RLlib's KL and entropy coefficients (tensors) are its inputs, so their changes compile
+    nothing. Static shapes: a shape's kernels do not depend on which shapes came first, so a resumed
+    run computes as the run never stopped."""
     return torch.compile(ppo_loss, dynamic=False)
 
 
