@@ -32,7 +32,8 @@ resources:
   num_envs_per_env_runner: 8
   num_cpus_per_env_runner: 1
   custom_resources_per_env_runner: {sampler: 1}
-league: {mode: selfplay, selfplay_phases: 2, min_phase_episodes: 100000, phase_env_steps: 2400}
+# 48 iterations: the run still trains when the test, after listing the actors (seconds), kills a node.
+league: {mode: selfplay, selfplay_phases: 2, min_phase_episodes: 100000, phase_env_steps: 9600}
 evaluation:
   episodes: 20
   workers: 2
