@@ -30,10 +30,12 @@ training, curve or tuning played:
    (recorded in the run's store, source ``test``) and against every arm's final player of the
    other side of the same training seed: win rates with Wilson 95% intervals; and the side's
    Nash mixture (``nash-team``) against every scripted player: its members' rates by their weights;
-2. its exploitability: ``--br-seeds`` best responses from scratch (``python -m league.exploit
-   --games test --json``) against (a) the final snapshot and (b) the side's Nash mixture of
-   the run's final meta-game (``nash-team``, ``nash-attacker``), each of ``--br-env-steps``
-   (a team's, against an attacker: ``--team-br-env-steps``): their mean win rate, its margin
+2. its exploitability: ``--br-seeds`` best responses (``python -m league.exploit --games test
+   --json``) against (a) the final snapshot and (b) the side's Nash mixture of the run's final
+   meta-game (``nash-team``, ``nash-attacker``), each of ``--br-env-steps`` (a team's, against
+   an attacker: ``--team-br-env-steps``); an attacker from scratch, a team from the run's prior
+   (``--team-br-start``: from scratch, many never learned to win where the league's own team
+   did, docs/results/league-quality.md): their mean win rate, its margin
    over the best league member of the other side (chosen on the dev games, measured on the
    test games) and how many learning curves were flat at the end (else the figure is a lower
    bound). Over the training seeds, per arm: the mean with its Student-t 95% interval, and the
@@ -95,6 +97,7 @@ def arm_overrides(arm: str, args, seed: int) -> list[str]:
         f"evaluation.episodes={args.episodes}", f"seed={seed}",
     ]
     per_side = args.phases // 2 * args.phase_env_steps
+    team_start = "the run's prior" if args.team_br_start == "prior" else "scratch"
     protocol_mode = ["league.mode=protocol", "league.exploiters=[]", "league.exploiter_phases=all"]  # exploiters: self-play only
     if arm == "protocol":
         phases = [f"{{learner: attacker, env_steps: {per_side}, opponents: scripted}}",
@@ -188,8 +191,10 @@ def cross_play(finals: dict[str, Finals], game, episodes: int) -> dict[tuple[str
 
 def exploited_in(run_dir: Path, name: str, side: str, args) -> Exploited:
     """``args.br_seeds`` best responses against ``name`` of ``side`` (a team's budget against an attacker), kept or new."""
-    budget = args.team_br_env_steps if side == "attacker" else args.br_env_steps
-    return exploited(run_dir, name, budget, args.br_seeds, args.episodes)
+    if side == "attacker":
+        return exploited(run_dir, name, args.team_br_env_steps, args.br_seeds, args.episodes,
+                         from_prior=args.team_br_start == "prior")
+    return exploited(run_dir, name, args.br_env_steps, args.br_seeds, args.episodes)
 
 
 def over_seeds(values: dict[str, dict[int, float]], arm: str, seeds: list[int], arms: list[str]) -> list[str]:
@@ -221,6 +226,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--terminal-reward", type=float, default=30.0)
     parser.add_argument("--br-env-steps", type=count(1), default=200_000, help="each best response's training budget")
     parser.add_argument("--team-br-env-steps", type=count(1), help="a team's best response's budget (default: --br-env-steps)")
+    parser.add_argument("--team-br-start", choices=("prior", "scratch"), default="prior",
+                        help="a team's best response starts from the run's team prior (default) or from scratch")
     parser.add_argument("--br-seeds", type=count(1), default=2, help="best responses per exploited player (default 2)")
     parser.add_argument("--episodes", type=count(1), default=1000, help="test games per pair (default 1000)")
     parser.add_argument("--sides", nargs="+", default=list(SIDES), choices=SIDES, help="whose exploitability to measure")
@@ -280,6 +287,7 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str], figure
             found.update({(arm, seed, side, target): e for (side, target), e in of_run.items()})
     any_run = finals[args.arms[0], args.seeds[0]]
     per_side = args.phases // 2 * args.phase_env_steps
+    team_start = "the run's prior" if args.team_br_start == "prior" else "scratch"
     lines = [
         "# Does the league make less exploitable players? (bench/league_quality.py)", "",
         f"Arms {', '.join(args.arms)} from `{args.config}`: method-2 attacker, terminal reward +-{args.terminal_reward:g}, "
@@ -287,8 +295,8 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str], figure
         f"{args.do_env_steps:,} env steps each, one after each phase, and the league arms' exploiters on top (\"+ DO, exploiters\": of that side's). Training seeds "
         f"{' '.join(map(str, args.seeds))} (settings chosen on seeds {' '.join(map(str, args.tuning_seeds)) or 'none named'}). "
         f"Every figure on {args.episodes} held-out test games per pair (Wilson 95% within a seed). Exploitability: "
-        f"{args.br_seeds} best response(s) from scratch per exploited player, {args.br_env_steps:,} env steps against a "
-        f"team, {args.team_br_env_steps:,} against an attacker (`league.exploit --games test`); margin: over the best "
+        f"{args.br_seeds} best response(s) per exploited player, an attacker from scratch for {args.br_env_steps:,} env "
+        f"steps against a team, a team from {team_start} for {args.team_br_env_steps:,} against an attacker (`league.exploit --games test`); margin: over the best "
         "league member of the other side (chosen on the dev games); flat: learning curves flat over the last third "
         f"of the budget (else the figure is a lower bound). Over seeds: {SEED_INTERVAL}, paired t-test minus `league`.",
         "", "```", "python bench/league_quality.py " + shlex.join(argv), "```", "",

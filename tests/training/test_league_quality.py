@@ -170,3 +170,30 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
     assert "study: 2 of 2 runs done (2 reused)" in said and "exploiting" not in progress
     assert (out / "league_quality.md").read_text() == page
     assert {p: p.stat().st_mtime_ns for p in kept} == kept
+
+
+def test_a_teams_best_responses_start_from_the_runs_prior_kept_apart_from_those_from_scratch(
+        league_quality, tmp_path, monkeypatch):
+    from league.studies import exploitation
+
+    calls = []
+
+    def exploit(argv):  # league.exploit --json's output, without training
+        calls.append(argv)
+        return {"seeds": [{"win_rate": 0.5, "curve_verdict": "flat"}], "best_member": None}
+
+    monkeypatch.setattr(exploitation, "run_exploit", exploit)
+    args = argparse.Namespace(br_env_steps=900, team_br_env_steps=600, br_seeds=1, episodes=6, team_br_start="prior")
+    league_quality.exploited_in(tmp_path, "attacker-m2-v1", "attacker", args)  # a team's best response
+    league_quality.exploited_in(tmp_path, "team-v1", "team", args)  # an attacker's: from scratch
+    args.team_br_start = "scratch"
+    league_quality.exploited_in(tmp_path, "attacker-m2-v1", "attacker", args)  # not the one from the prior again
+    assert [("--from-prior" in argv, argv[argv.index("--env-steps") + 1]) for argv in calls] == [
+        (True, "600"), (False, "900"), (False, "600")]
+    assert sorted(p.name for p in (tmp_path / "exploitability").iterdir()) == [
+        "attacker-m2-v1-600-steps-6-test-games.json", "attacker-m2-v1-600-steps-from-prior-6-test-games.json",
+        "team-v1-900-steps-6-test-games.json"]
+    for start in ("prior", "scratch"):  # run again: each start's kept result, nothing trained
+        args.team_br_start = start
+        assert league_quality.exploited_in(tmp_path, "attacker-m2-v1", "attacker", args).mean == 0.5
+    assert len(calls) == 3
