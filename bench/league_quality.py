@@ -33,9 +33,10 @@ training, curve or tuning played:
 2. its exploitability: ``--br-seeds`` best responses (``python -m league.exploit --games test
    --json``) against (a) the final snapshot and (b) the side's Nash mixture of the run's final
    meta-game (``nash-team``, ``nash-attacker``), each of ``--br-env-steps`` (a team's, against
-   an attacker: ``--team-br-env-steps``); an attacker from scratch, a team from the run's prior
-   (``--team-br-start``: from scratch, many never learned to win where the league's own team
-   did, docs/results/league-quality.md): their mean win rate, its margin
+   an attacker: ``--team-br-env-steps``); an attacker from scratch, a team both from scratch
+   (where many never learned to win, docs/results/league-quality.md) and from the run's team
+   prior, the start whose learning curves end higher (dev games) counting (``--team-br-start``):
+   their mean win rate, its margin
    over the best league member of the other side (chosen on the dev games, measured on the
    test games) and how many learning curves were flat at the end (else the figure is a lower
    bound). Over the training seeds, per arm: the mean with its Student-t 95% interval, and the
@@ -97,7 +98,8 @@ def arm_overrides(arm: str, args, seed: int) -> list[str]:
         f"evaluation.episodes={args.episodes}", f"seed={seed}",
     ]
     per_side = args.phases // 2 * args.phase_env_steps
-    team_start = "the run's prior" if args.team_br_start == "prior" else "scratch"
+    team_start = {"both": "scratch and from the run's prior (the stronger on the dev games; its start beside its rate)",
+                  "prior": "the run's prior", "scratch": "scratch"}[args.team_br_start]
     protocol_mode = ["league.mode=protocol", "league.exploiters=[]", "league.exploiter_phases=all"]  # exploiters: self-play only
     if arm == "protocol":
         phases = [f"{{learner: attacker, env_steps: {per_side}, opponents: scripted}}",
@@ -191,10 +193,19 @@ def cross_play(finals: dict[str, Finals], game, episodes: int) -> dict[tuple[str
 
 def exploited_in(run_dir: Path, name: str, side: str, args) -> Exploited:
     """``args.br_seeds`` best responses against ``name`` of ``side`` (a team's budget against an attacker), kept or new."""
-    if side == "attacker":
-        return exploited(run_dir, name, args.team_br_env_steps, args.br_seeds, args.episodes,
-                         from_prior=args.team_br_start == "prior")
-    return exploited(run_dir, name, args.br_env_steps, args.br_seeds, args.episodes)
+    if side == "team":
+        return exploited(run_dir, name, args.br_env_steps, args.br_seeds, args.episodes)
+    starts = {"scratch": [False], "prior": [True], "both": [False, True]}[args.team_br_start]
+    trained = [exploited(run_dir, name, args.team_br_env_steps, args.br_seeds, args.episodes, from_prior) for from_prior in starts]
+    return max(trained, key=lambda e: e.dev_rate)  # the stronger start, chosen off the test games
+
+
+def start_shown(found: Exploited, side: str, args) -> list[str]:
+    """The page's cells of ``found``: with both starts for a team's best responses, its rate says which counted."""
+    cells = found.cells()
+    if side == "attacker" and args.team_br_start == "both":
+        cells[0] += " (prior)" if found.from_prior else " (scratch)"
+    return cells
 
 
 def over_seeds(values: dict[str, dict[int, float]], arm: str, seeds: list[int], arms: list[str]) -> list[str]:
@@ -226,8 +237,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--terminal-reward", type=float, default=30.0)
     parser.add_argument("--br-env-steps", type=count(1), default=200_000, help="each best response's training budget")
     parser.add_argument("--team-br-env-steps", type=count(1), help="a team's best response's budget (default: --br-env-steps)")
-    parser.add_argument("--team-br-start", choices=("prior", "scratch"), default="prior",
-                        help="a team's best response starts from the run's team prior (default) or from scratch")
+    parser.add_argument("--team-br-start", choices=("both", "prior", "scratch"), default="both",
+                        help="a team's best responses start from scratch and from the run's team prior, the stronger on "
+                        "the dev games counting (default both), or from one of them")
     parser.add_argument("--br-seeds", type=count(1), default=2, help="best responses per exploited player (default 2)")
     parser.add_argument("--episodes", type=count(1), default=1000, help="test games per pair (default 1000)")
     parser.add_argument("--sides", nargs="+", default=list(SIDES), choices=SIDES, help="whose exploitability to measure")
@@ -287,7 +299,8 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str], figure
             found.update({(arm, seed, side, target): e for (side, target), e in of_run.items()})
     any_run = finals[args.arms[0], args.seeds[0]]
     per_side = args.phases // 2 * args.phase_env_steps
-    team_start = "the run's prior" if args.team_br_start == "prior" else "scratch"
+    team_start = {"both": "scratch and from the run's prior (the stronger on the dev games; its start beside its rate)",
+                  "prior": "the run's prior", "scratch": "scratch"}[args.team_br_start]
     lines = [
         "# Does the league make less exploitable players? (bench/league_quality.py)", "",
         f"Arms {', '.join(args.arms)} from `{args.config}`: method-2 attacker, terminal reward +-{args.terminal_reward:g}, "
@@ -323,7 +336,7 @@ def measure(args, run_dirs: dict[tuple[str, int], Path], argv: list[str], figure
                   "Nash mixture: win rate | margin (member) | flat |", "| --- " * 9 + "|"]
         for (arm, seed), final in finals.items():
             steps = f"{final.players[side].env_steps:,} + {final.extra_steps[side]:,}"
-            cells = [c for target in TARGETS for c in found[arm, seed, side, target].cells()]
+            cells = [c for target in TARGETS for c in start_shown(found[arm, seed, side, target], side, args)]
             lines.append(f"| {arm} | {seed} | {steps} | " + " | ".join(cells) + " |")
             print(lines[-1], flush=True)
         values = {target: {arm: {seed: found[arm, seed, side, target].mean for seed in args.seeds} for arm in args.arms}

@@ -172,15 +172,17 @@ def test_a_tiny_study_exploits_finals_and_mixtures_on_the_test_games_and_reuses_
     assert {p: p.stat().st_mtime_ns for p in kept} == kept
 
 
-def test_a_teams_best_responses_start_from_the_runs_prior_kept_apart_from_those_from_scratch(
+def test_a_teams_best_responses_start_from_scratch_and_from_the_runs_prior_the_stronger_on_the_dev_games_counting(
         league_quality, tmp_path, monkeypatch):
     from league.studies import exploitation
 
     calls = []
 
-    def exploit(argv):  # league.exploit --json's output, without training
-        calls.append(argv)
-        return {"seeds": [{"win_rate": 0.5, "curve_verdict": "flat"}], "best_member": None}
+    def exploit(argv):  # league.exploit --json's output, without training: from the prior weaker on the test games,
+        calls.append(argv)  # stronger at its curve's last point (the dev games)
+        prior = "--from-prior" in argv
+        curve = [{"env_steps": 600, "wins": 150 if prior else 100, "games": 200}]
+        return {"seeds": [{"win_rate": 0.5 if prior else 0.9, "curve_verdict": "flat", "curve": curve}], "best_member": None}
 
     monkeypatch.setattr(exploitation, "run_exploit", exploit)
     args = argparse.Namespace(br_env_steps=900, team_br_env_steps=600, br_seeds=1, episodes=6, team_br_start="prior")
@@ -193,7 +195,7 @@ def test_a_teams_best_responses_start_from_the_runs_prior_kept_apart_from_those_
     assert sorted(p.name for p in (tmp_path / "exploitability").iterdir()) == [
         "attacker-m2-v1-600-steps-6-test-games.json", "attacker-m2-v1-600-steps-from-prior-6-test-games.json",
         "team-v1-900-steps-6-test-games.json"]
-    for start in ("prior", "scratch"):  # run again: each start's kept result, nothing trained
-        args.team_br_start = start
-        assert league_quality.exploited_in(tmp_path, "attacker-m2-v1", "attacker", args).mean == 0.5
-    assert len(calls) == 3
+    args.team_br_start = "both"  # both kept: nothing trained, the prior's counts (its curve ends higher)
+    both = league_quality.exploited_in(tmp_path, "attacker-m2-v1", "attacker", args)
+    assert len(calls) == 3 and (both.mean, both.from_prior) == (0.5, True)
+    assert league_quality.start_shown(both, "attacker", args)[0] == "0.500 (prior)"
