@@ -98,8 +98,6 @@ def arm_overrides(arm: str, args, seed: int) -> list[str]:
         f"evaluation.episodes={args.episodes}", f"seed={seed}",
     ]
     per_side = args.phases // 2 * args.phase_env_steps
-    team_start = {"both": "scratch and from the run's prior (the stronger on the dev games; its start beside its rate)",
-                  "prior": "the run's prior", "scratch": "scratch"}[args.team_br_start]
     protocol_mode = ["league.mode=protocol", "league.exploiters=[]", "league.exploiter_phases=all"]  # exploiters: self-play only
     if arm == "protocol":
         phases = [f"{{learner: attacker, env_steps: {per_side}, opponents: scripted}}",
