@@ -40,7 +40,8 @@ def paired_rows(base: list[list[Row]], other: list[list[Row]]) -> list[str]:
         cells = []
         for rows in (mine, theirs):
             _, verdict = seed_verdict([r.gain for r in rows])
-            cells.append(f"{np.mean([r.rate for r in rows]):.3f} ({verdict} than {short(rows[0].reference)})")
+            cells.append(f"{np.mean([r.rate for r in rows]):.3f} ({verdict} {'with' if verdict == 'even' else 'than'} "
+                         f"{short(rows[0].reference)})")
         differences = [t.rate - m.rate for m, t in zip(mine, theirs)]
         low, high = mean_interval(differences)
         lines.append(f"| {head.side} | {against} | {cells[0]} | {cells[1]} | {np.mean(differences):+.3f} "
