@@ -32,6 +32,8 @@ def paired_rows(base: list[list[Row]], other: list[list[Row]]) -> list[str]:
     """Markdown lines: a row per comparison (``base[s][i]`` beside ``other[s][i]`` over seeds ``s``)."""
     lines = ["| trained player | against | base (over seeds) | other (over seeds) | other - base [Student-t 95%] | p |",
              "| --- | --- | --- | --- | --- | --- |"]
+    if any(len(b) != len(o) for b, o in zip(base, other)):
+        raise ValueError("the two arms' runs have different players: not one config's rows")
     for i, head in enumerate(base[0]):
         mine, theirs = [rows[i] for rows in base], [rows[i] for rows in other]
         if theirs[0].side != head.side or (head.against.startswith("scripted-") and theirs[0].against != head.against):

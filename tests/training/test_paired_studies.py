@@ -23,3 +23,5 @@ def test_a_row_is_the_difference_paired_by_seed_and_a_row_of_other_opponents_is_
 
         with pytest.raises(ValueError, match="row 0"):
             bench.paired_rows(base, [[row(600, against="scripted-straight+active_defense")]] * 3)
+        with pytest.raises(ValueError, match="different players"):
+            bench.paired_rows(base, [[row(600), row(600)]] * 3)
