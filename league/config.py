@@ -86,7 +86,10 @@ class PPOSettings(Strict):
     """What ``minibatch_size`` counts: ``rows``; or ``env_steps``, the rows of that many env steps, so the team (two
     rows per env step) takes as many gradient steps as the attacker. Needs ``resources.sampler: fast``."""
     num_epochs: int = Field(5, ge=1)
-    """Passes over each training batch."""
+    """Passes over each training batch (the attacker's, and the team's unless ``team_num_epochs`` is set)."""
+    team_num_epochs: int | None = Field(None, ge=1)
+    """Passes over each of the team's training batches, whose T and D rows make them twice the attacker's; ``None``:
+    ``num_epochs``. Needs ``resources.sampler: fast``. What it pays: [time-to-strength.md](results/time-to-strength.md)."""
     hidden: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [64, 64], min_length=1)
     """Hidden layer sizes of both the policy and the value network (the attacker's, and the
     team's unless ``team_hidden`` is set)."""
@@ -124,6 +127,10 @@ class PPOSettings(Strict):
         """Rows per minibatch of the ``side`` learner's updates."""
         rows_per_env_step = 2 if side == "team" and self.minibatch_counts == "env_steps" else 1  # the team: T and D
         return rows_per_env_step * self.minibatch_size
+
+    def epochs(self, side: Side) -> int:
+        """Passes over each of the ``side`` learner's training batches."""
+        return self.team_num_epochs if side == "team" and self.team_num_epochs is not None else self.num_epochs
 
     def hidden_of(self, side: Side) -> list[int]:
         """Hidden layer sizes of the ``side`` learner's networks."""
@@ -364,6 +371,8 @@ class RunConfig(Strict):
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
         if self.ppo.minibatch_counts != "rows" and self.resources.sampler != "fast":
             raise ValueError("ppo.minibatch_counts: env_steps needs resources.sampler: fast (RLlib's PPO has one minibatch size)")
+        if self.ppo.team_num_epochs is not None and self.resources.sampler != "fast":
+            raise ValueError("ppo.team_num_epochs needs resources.sampler: fast (RLlib's PPO has one epoch count)")
         if self.ppo.team_reward != "own" and self.resources.sampler != "fast":
             raise ValueError("ppo.team_reward: shared needs resources.sampler: fast (RLlib's learner pays each agent its own reward)")
         for key in ("targeter_shaping", "defender_shaping", "attacker_win_reward", "attacker_residual_penalty", "bf16",

@@ -29,6 +29,8 @@ def write(tmp_path, text):
         ("name: x\nppo: {team_gamma: 0.999}\nresources: {sampler: batched}\n", "team_gamma"),
         ("name: x\nppo: {minibatch_counts: env_steps}\nresources: {sampler: standard}\n", "minibatch_counts"),
         ("name: x\nppo: {minibatch_counts: games}\n", "ppo.minibatch_counts"),
+        ("name: x\nppo: {team_num_epochs: 2}\nresources: {sampler: standard}\n", "ppo.team_num_epochs needs resources.sampler: fast"),
+        ("name: x\nppo: {team_num_epochs: 0}\n", "ppo.team_num_epochs"),
         ("name: x\nppo: {targeter_shaping: -1}\n", "ppo.targeter_shaping"),
         ("name: x\nppo: {targeter_shaping: 3}\nresources: {sampler: batched}\n", "targeter_shaping"),
         ("name: x\nppo: {defender_shaping: 3}\nresources: {sampler: batched}\n", "defender_shaping"),

@@ -191,8 +191,8 @@ class LeaguePPO(FaultTolerantPPO):
                         (LEARNER_RESULTS, ALL_MODULES, NUM_MODULE_STEPS_TRAINED_LIFETIME), default=0
                     ),
                 },
-                num_epochs=config.num_epochs,
-                minibatch_size=minibatch_size(config, batch),
+                num_epochs=learner_setting(config, batch, NUM_EPOCHS, config.num_epochs),
+                minibatch_size=learner_setting(config, batch, MINIBATCH_SIZES, config.minibatch_size),
                 shuffle_batch_per_epoch=config.shuffle_batch_per_epoch,
             )
             self.metrics.aggregate(learner_results, key=LEARNER_RESULTS)
@@ -212,19 +212,21 @@ def env_steps_of(sampled: list[tuple[Any, dict[str, Any]]]) -> int:
 
 
 MINIBATCH_SIZES = "league_minibatch_sizes"  # `learner_config_dict` key: learner module id -> rows per minibatch
+NUM_EPOCHS = "league_num_epochs"  # `learner_config_dict` key: learner module id -> passes over its batch
 SAMPLE_AHEAD = "league_sample_ahead"  # `learner_config_dict` key: `resources.sample_ahead`
 COMPILED_LOSS = "league_compiled_loss"  # `learner_config_dict` key: `ppo.compile_loss`, where torch can compile
 RESIDUAL_PENALTIES = "league_residual_penalties"  # `learner_config_dict` key: learner module id -> `ppo.attacker_residual_penalty`
 RESIDUAL_PENALTY_GATED = "league_residual_penalty_gated"  # `learner_config_dict` key: `ppo.attacker_residual_penalty_gate` not `always`
 
 
-def minibatch_size(config: Any, batch: MultiAgentBatch) -> int:
-    """Rows per minibatch of the learners in ``batch`` (``PPOSettings.minibatch``); one side learns at a time."""
-    by_module = config.learner_config_dict.get(MINIBATCH_SIZES, {})
-    sizes = {by_module.get(module_id, config.minibatch_size) for module_id in batch.policy_batches}
-    if len(sizes) != 1:
-        raise ValueError(f"one update of learners with different minibatch sizes: {sorted(batch.policy_batches)}")
-    return sizes.pop()
+def learner_setting(config: Any, batch: MultiAgentBatch, key: str, default: int) -> int:
+    """The learners' value of a per-module setting (``MINIBATCH_SIZES``, ``NUM_EPOCHS``) for the learners in
+    ``batch``, ``default`` for a module without one; one side learns at a time."""
+    by_module = config.learner_config_dict.get(key, {})
+    values = {by_module.get(module_id, default) for module_id in batch.policy_batches}
+    if len(values) != 1:
+        raise ValueError(f"one update of learners with different {key}: {sorted(batch.policy_batches)}")
+    return values.pop()
 
 
 def training_batch(parts: list[dict[str, dict[str, np.ndarray]]], env_steps: int) -> MultiAgentBatch | None:

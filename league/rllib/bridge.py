@@ -30,7 +30,7 @@ from envs.single import action_space
 from league.config import RunConfig
 from league.core.match_plan import MatchPlan
 from league.core.players import NewPlayer, Player
-from league.rllib.algorithm import COMPILED_LOSS, MINIBATCH_SIZES, RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, SAMPLE_AHEAD, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
+from league.rllib.algorithm import COMPILED_LOSS, MINIBATCH_SIZES, NUM_EPOCHS, RESIDUAL_PENALTIES, RESIDUAL_PENALTY_GATED, SAMPLE_AHEAD, FaultTolerantPPO, LeaguePPO, with_env_runner_fault_tolerance
 from league.rllib.callbacks import AttackerRewardByMethod, OutcomeRecorder
 from league.rllib.env_runner import BatchedEnvRunner, SeededEnvRunner, seed_iteration
 from league.rllib import compat
@@ -203,6 +203,7 @@ def build_config(run: RunConfig, players: list[Player], plan: MatchPlan) -> PPOC
             num_learners=0,
             learner_config_dict={
                 MINIBATCH_SIZES: {p.name: ppo.minibatch(p.side) for p in players if p.trains},
+                NUM_EPOCHS: {p.name: ppo.epochs(p.side) for p in players if p.trains},
                 SAMPLE_AHEAD: res.sample_ahead,
                 COMPILED_LOSS: learner_compiles_loss(run),
                 RESIDUAL_PENALTIES: {p.name: ppo.attacker_residual_penalty for p in players if p.trains and p.side == "attacker"},

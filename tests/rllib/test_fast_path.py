@@ -212,6 +212,22 @@ def test_minibatches_counted_in_env_steps_give_the_team_twice_the_rows(algo):  #
         own.stop()
 
 
+def test_the_team_takes_its_own_epoch_count(algo):  # `algo`: Ray is up
+    # `ppo.team_num_epochs`: the team passes its batch that many times, the attacker `num_epochs` times.
+    run = RunConfig(**{**RUN.model_dump(), "ppo": {**RUN.ppo.model_dump(), "team_num_epochs": 2}})
+    plan = MatchPlan([{"attacker": ATTACKER.name}], [[TEAM.modules()]], [[1.0]], seed=0)  # the team in every game
+    own = build_config(run, [ATTACKER, TEAM, SCRIPTED_TEAM], plan).build_algo()
+    try:
+        set_trainable(own, [ATTACKER.name])
+        own.train()
+        assert gradient_steps(own, ATTACKER.name) == 3  # 300 rows in minibatches of 100, one epoch
+        set_trainable(own, [TEAM.name])
+        own.train()
+        assert gradient_steps(own, TEAM.name) == 12  # 600 rows in minibatches of 100, two epochs
+    finally:
+        own.stop()
+
+
 def test_the_learning_rate_follows_its_schedule_over_env_steps(algo):  # `algo`: Ray is up
     run = RunConfig(**{**RUN.model_dump(), "ppo": {**RUN.ppo.model_dump(), "lr_schedule": [[0, 0.01], [600, 0.001]]}})
     plan = MatchPlan([{"attacker": ATTACKER.name}], [[SCRIPTED_TEAM.modules()]], [[1.0]], seed=0)

@@ -103,6 +103,16 @@ def test_a_run_with_remote_env_runners_killed_and_resumed_is_the_run_never_kille
     assert run_differences(whole, killed) == []
 
 
+def test_a_run_with_the_teams_own_epoch_count_killed_and_resumed_is_the_run_never_killed(whole, tmp_path):
+    # Killed in the attacker's phase: the resumed run's team phase must pass its batches twice.
+    tiny = [*TINY_SMOKE, "--set", "ppo.team_num_epochs=2"]
+    own, killed = tmp_path / "own", tmp_path / "killed"
+    finish(league(*tiny, "--run-dir", str(own)))
+    assert run_differences(whole, own) != []  # the setting changes the run
+    killed_after_two_and_resumed(tiny, own, killed)
+    assert run_differences(own, killed) == []
+
+
 def killed_after_two_and_resumed(args: list[str], whole: Path, killed: Path) -> None:
     """Start the run ``args`` at ``killed``, SIGKILL it once 2 iterations are committed, resume it to its end."""
     proc = league(*args, "--run-dir", str(killed))
