@@ -89,7 +89,7 @@ class PPOSettings(Strict):
     """Passes over each training batch (the attacker's, and the team's unless ``team_num_epochs`` is set)."""
     team_num_epochs: int | None = Field(None, ge=1)
     """Passes over each of the team's training batches, whose T and D rows make them twice the attacker's; ``None``:
-    ``num_epochs``. Needs ``resources.sampler: fast``. What it pays: [time-to-strength.md](results/time-to-strength.md)."""
+    ``num_epochs``. Needs ``resources.sampler: fast``. What it pays: [league-time.md](results/league-time.md)."""
     hidden: list[Annotated[int, Field(ge=1)]] = Field(default_factory=lambda: [64, 64], min_length=1)
     """Hidden layer sizes of both the policy and the value network (the attacker's, and the
     team's unless ``team_hidden`` is set)."""
