@@ -96,9 +96,9 @@ class PPOSettings(Strict):
     team_hidden: list[Annotated[int, Field(ge=1)]] | None = Field(None, min_length=1)
     """Hidden layer sizes of the team's policy and value networks; ``None``: ``hidden``. What ``[256, 256]`` bought, at
     what cost: [learning.md](results/learning.md)."""
-    attacker_prior: Literal["none", "lead_intercept"] = "none"
+    attacker_prior: Literal["none", "lead_intercept", "apollonius"] = "none"
     """``lead_intercept``: the policy mean is lead intercept's turn plus the network's output, so the untrained attacker
-    plays lead intercept; ``none``: the network's. Needs ``game.observation: rich``, ``game.action_mode: relative``."""
+    plays lead intercept; ``apollonius``: the same with the Apollonius attacker's turn; ``none``: the network's. Needs ``game.observation: rich``, ``game.action_mode: relative``."""
     team_prior: Literal["none", "straight+pure_pursuit", "avoid_attacker+pure_pursuit",
                         "avoid_oncoming_attacker+pure_pursuit"] = "none"
     """A scripted team (``envs.scripted``) whose turn plus the team's network output is its policy mean, so untrained it
@@ -115,6 +115,9 @@ class PPOSettings(Strict):
     attacker_heading_cosines: bool = False
     """The attacker's network also reads two cosines of its observation: T's heading against T's line to the terminal,
     D's against D's line to A (``league.rllib.modules.HeadingCosines``). Needs ``game.observation: rich``."""
+    attacker_scripted_turns: bool = False
+    """The attacker's network also reads lead intercept's and the Apollonius attacker's turns, four numbers computed
+    from its observation (``league.rllib.modules.ScriptedTurns``). Needs ``game.observation: rich``."""
     bf16: bool = False
     """The learner's forward and backward passes in bfloat16 where the CPU has it natively, else float32; it pays at
     wide networks only ([performance.md](performance.md)). Needs ``resources.sampler: fast``."""
@@ -365,8 +368,9 @@ class RunConfig(Strict):
             raise ValueError("ppo.attacker_residual_penalty needs ppo.attacker_prior (it weighs the correction of a prior)")
         if self.ppo.attacker_residual_penalty_gate != "always" and not self.game.attacker_memory:
             raise ValueError("ppo.attacker_residual_penalty_gate: until_targeter_turns needs game.attacker_memory")
-        if self.ppo.attacker_heading_cosines and self.game.observation != "rich":
-            raise ValueError("ppo.attacker_heading_cosines needs game.observation: rich")
+        for key in ("attacker_heading_cosines", "attacker_scripted_turns"):
+            if getattr(self.ppo, key) and self.game.observation != "rich":
+                raise ValueError(f"ppo.{key} needs game.observation: rich")
         if self.ppo.minibatch_size > self.ppo.train_batch_size:
             raise ValueError("ppo.minibatch_size must not exceed ppo.train_batch_size")
         if self.ppo.minibatch_counts != "rows" and self.resources.sampler != "fast":

@@ -46,6 +46,8 @@ def write(tmp_path, text):
         ("name: x\nppo: {attacker_prior: pure_pursuit}\n", "ppo.attacker_prior"),
         ("name: x\nppo: {team_prior: straight+pure_pursuit}\ngame: {action_mode: absolute}\n", "team_prior"),
         ("name: x\nppo: {attacker_heading_cosines: true}\ngame: {observation: paper}\n", "attacker_heading_cosines"),
+        ("name: x\nppo: {attacker_scripted_turns: true}\ngame: {observation: paper}\n", "attacker_scripted_turns"),
+        ("name: x\nppo: {attacker_prior: apollonius}\ngame: {observation: paper}\n", "attacker_prior"),
         ("name: x\nppo: {attacker_residual_penalty: 0.1}\n", "attacker_residual_penalty needs ppo.attacker_prior"),
         ("name: x\nppo: {attacker_residual_penalty: -1, attacker_prior: lead_intercept}\n", "ppo.attacker_residual_penalty"),
         ("name: x\nppo: {attacker_residual_penalty_gate: until_targeter_turns}\n", "needs game.attacker_memory"),

@@ -83,6 +83,7 @@ def learner_settings(run: RunConfig, side: str, reward_method: int | None = None
         hidden=run.ppo.hidden_of(side),
         prior=run.ppo.team_prior if team else run.ppo.attacker_prior,
         heading_cosines=run.ppo.attacker_heading_cosines and not team,
+        scripted_turns=run.ppo.attacker_scripted_turns and not team,
         game=run.game,
         bf16=run.ppo.bf16,
         explore_when_frozen=run.league.frozen_players_explore,

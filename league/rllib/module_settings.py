@@ -28,10 +28,11 @@ class _Settings(BaseModel):
 
     @classmethod
     def from_model_config(cls, model_config: dict[str, Any] | None) -> Self:
-        """The settings of a module's ``model_config``: every key known, none missing."""
+        """The settings of a module's ``model_config``: every key known, none missing but those with a default
+        (settings added since, which modules saved before them did not have)."""
         given = {key: value for key, value in (model_config or {}).items() if key not in RLLIB_KEYS}
         unknown = sorted(set(given) - set(cls.model_fields))
-        missing = sorted(set(cls.model_fields) - set(given))
+        missing = sorted(key for key, field in cls.model_fields.items() if key not in given and field.is_required())
         if unknown or missing:
             problems = [f"unknown key {key!r}" for key in unknown] + [f"missing key {key!r}" for key in missing]
             raise ValueError(f"{cls.__name__} from a module's model_config: {', '.join(problems)}")
@@ -56,6 +57,8 @@ class ActorCriticSettings(_Settings, TrainingPay):
     """``none`` or a name of ``league.rllib.modules.PRIORS`` (``PPOSettings.attacker_prior``, ``team_prior``)."""
     heading_cosines: bool
     """The actor also reads ``HeadingCosines`` (``PPOSettings.attacker_heading_cosines``)."""
+    scripted_turns: bool = False
+    """The actor also reads ``ScriptedTurns`` (``PPOSettings.attacker_scripted_turns``)."""
     game: GameConfig
     """The game, for the prior's speeds and turn limits."""
     bf16: bool

@@ -9,12 +9,12 @@ Every agent's observation arrives with the env's 22-number global state appended
   attacker's). The role matters: T and D are paid differently (Eq. 10 vs 11), so at one
   global state their values differ, and a critic blind to the role can only learn their
   average, which biases both agents' advantages.
-  With ``prior: lead_intercept`` (``PPOSettings.attacker_prior``) the actor is a
-  ``ResidualActor``: lead intercept's turn plus the network's output; with a scripted team as
+  With ``prior: lead_intercept`` or ``apollonius`` (``PPOSettings.attacker_prior``) the actor is a
+  ``ResidualActor``: that scripted attacker's turn plus the network's output; with a scripted team as
   ``prior`` (``PPOSettings.team_prior``), that team's turn for T or D plus the network's
   output (``ScriptedTeamTurn``). With
   ``heading_cosines`` (``PPOSettings.attacker_heading_cosines``) the actor's network reads
-  two numbers more, ``HeadingCosines``.
+  two numbers more, ``HeadingCosines``; with ``scripted_turns`` four more, ``ScriptedTurns``.
 * ``ScriptedModule``: a scripted player of ``envs.scripted``, reading the global state;
   it returns actions directly and is never trained.
 """
@@ -40,6 +40,7 @@ from envs.observations import (
     split_policy_input,
 )
 from envs.scripted import SHELTER_DISTANCE, act_from_state
+from envs.theory_players import APPROACH_CANDIDATES, PATH_POINTS
 from league.rllib.module_settings import ActorCriticSettings, ScriptedSettings
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
@@ -122,6 +123,75 @@ class LeadInterceptTurn(nn.Module):
         t = (ru + torch.sqrt(ru * ru + margin * (r * r).sum(-1))) / margin
         aim = r + u * t.unsqueeze(-1)
         return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
+
+
+class ApolloniusTurn(nn.Module):
+    """The Apollonius attacker's action (``envs.theory_players.attacker_apollonius``: T's earliest
+    interception point, else the first point of T's straight path home from the edge of its
+    Apollonius region that D does not cut off) from the attacker's ``rich`` observation alone:
+    T, D and the terminal relative to A, T's heading, all in A's yaw frame, and A's pitch."""
+
+    def __init__(self, game: GameConfig):
+        super().__init__()
+        scale = game.position_scale  # lengths in the observation are divided by it; so are the speeds here
+        self.v_attacker, self.v_targeter, self.v_defender = game.v_attacker / scale, game.v_targeter / scale, game.v_defender / scale
+        self.capture_radius, self.defender_radius = game.attacker_radius / scale, game.defender_radius / scale
+        self.terminal_radius = game.terminal_sphere_radius / scale
+        self.max_yaw_change, self.max_pitch_change = game.max_yaw_change, game.max_pitch_change
+        # Block starts as attributes: TorchScript does not read module-level ints in forward.
+        self.t, self.d, self.terminal, self.heading = RICH_FIRST_OTHER, RICH_SECOND_OTHER, RICH_TERMINAL, RICH_HEADING
+        self.register_buffer("along", torch.linspace(0.0, 1.0, APPROACH_CANDIDATES), persistent=False)
+        self.register_buffer("steps", torch.linspace(1.0 / PATH_POINTS, 1.0, PATH_POINTS), persistent=False)
+
+    def forward(self, own: torch.Tensor) -> torch.Tensor:
+        own = own.float()
+        t, d = own[..., self.t : self.t + 3], own[..., self.d : self.d + 3]  # T - A, D - A
+        to_terminal = own[..., self.terminal : self.terminal + 3] - t  # terminal - T
+        u = own[..., self.t + self.heading : self.t + self.heading + 3] * self.v_targeter  # T's velocity
+        distance_home = torch.linalg.vector_norm(to_terminal, dim=-1)
+        home = to_terminal / distance_home.clamp_min(1e-12).unsqueeze(-1)
+        # envs.start_classes.region_radius with A at the origin: where T's path home leaves its region.
+        k = self.v_targeter / self.v_attacker
+        r = self.capture_radius
+        qa = 1.0 / (k * k) - 1.0
+        qb = 2.0 * (r / k - (t * home).sum(-1))
+        qc = r * r - (t * t).sum(-1)
+        rho = (-qb + torch.sqrt((qb * qb - 4.0 * qa * qc).clamp_min(0.0))) / (2.0 * qa)
+        rho = torch.where(qc < 0, rho, torch.zeros_like(rho))
+        flight = (distance_home - self.terminal_radius).clamp_min(0.0)
+        first = torch.minimum(rho, flight)
+        distances = first.unsqueeze(-1) + self.along * (flight - first).unsqueeze(-1)  # (..., K)
+        path_home = t.unsqueeze(-2) + distances.unsqueeze(-1) * home.unsqueeze(-2)  # (..., K, 3)
+        # envs.geometry.lead_intercept: the positive root of |t + u s| = v_A s.
+        tu = (t * u).sum(-1)
+        margin = self.v_attacker**2 - (u * u).sum(-1)
+        meeting = (tu + torch.sqrt(tu * tu + margin * (t * t).sum(-1))) / margin
+        lead = t + u * meeting.unsqueeze(-1)
+        aims = torch.cat((lead.unsqueeze(-2), path_home), dim=-2)  # (..., 1 + K, 3)
+        path = self.steps.unsqueeze(-1) * aims.unsqueeze(-2)  # (..., 1 + K, P, 3): A's straight approach
+        d_time = (torch.linalg.vector_norm(path - d.unsqueeze(-2).unsqueeze(-2), dim=-1) - self.defender_radius) / self.v_defender
+        a_time = torch.linalg.vector_norm(path, dim=-1) / self.v_attacker
+        open_approach = (d_time > a_time).all(dim=-1)  # (..., 1 + K)
+        # The first open approach; with none open, the first point of the path home.
+        first_open = torch.argmax(open_approach.to(torch.int32), dim=-1)
+        choice = torch.where(open_approach.any(dim=-1), first_open, torch.ones_like(first_open))
+        aim = torch.gather(aims, -2, choice.unsqueeze(-1).unsqueeze(-1).expand(choice.shape + (1, 3))).squeeze(-2)
+        return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
+
+
+class ScriptedTurns(nn.Module):
+    """The attacker's ``rich`` observation with four numbers appended: lead intercept's turn and the
+    Apollonius attacker's (``LeadInterceptTurn``, ``ApolloniusTurn``), the two attackers that are best
+    against the scripted teams whose D intercepts and whose D chases A."""
+
+    size = 4
+
+    def __init__(self, game: GameConfig):
+        super().__init__()
+        self.lead, self.apollonius = LeadInterceptTurn(game), ApolloniusTurn(game)
+
+    def forward(self, own: torch.Tensor) -> torch.Tensor:
+        return torch.cat((own, self.lead(own), self.apollonius(own)), dim=-1)
 
 
 class ScriptedTeamTurn(nn.Module):
@@ -207,8 +277,26 @@ class ResidualActor(nn.Module):
 # Named as in the config: ``ppo.attacker_prior``, ``ppo.team_prior``.
 PRIORS = {
     "lead_intercept": LeadInterceptTurn,
+    "apollonius": ApolloniusTurn,
     **{f"{targeter}+pure_pursuit": partial(ScriptedTeamTurn, targeter=targeter) for targeter in ScriptedTeamTurn.targeters},
 }
+
+
+def appended_features(settings: ActorCriticSettings) -> nn.Module | None:
+    """The numbers the actor's network reads after the observation (each appends its own to the observation's
+    end, so the blocks that the next one reads stay in place), or ``None``."""
+    parts: list[nn.Module] = []
+    if settings.heading_cosines:
+        parts.append(HeadingCosines())
+    if settings.scripted_turns:
+        parts.append(ScriptedTurns(settings.game))
+    if not parts:
+        return None
+    if len(parts) == 1:
+        return parts[0]
+    features = nn.Sequential(*parts)
+    features.size = sum(part.size for part in parts)
+    return features
 
 
 class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
@@ -222,7 +310,7 @@ class ActorCriticModule(TorchRLModule, ValueFunctionAPI):
         critic_inputs = total - self.actor_inputs + ROLE_SIZE if self.critic_input == "global" else self.actor_inputs
         actions = self.action_space.shape[0]
         hidden = list(settings.hidden)
-        features = HeadingCosines() if settings.heading_cosines else None
+        features = appended_features(settings)
         self.pi = mlp(self.actor_inputs, hidden, actions, last_gain=0.01, features=features)
         if settings.prior != "none":
             self.pi = ResidualActor(PRIORS[settings.prior](settings.game), self.pi)

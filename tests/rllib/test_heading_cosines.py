@@ -1,5 +1,6 @@
-"""The attacker's two heading cosines (``ppo.attacker_heading_cosines``): what they measure,
-and that the attacker's network reads them where asked, the team's never."""
+"""The attacker's two heading cosines (``ppo.attacker_heading_cosines``) and its scripted attackers'
+turns (``ppo.attacker_scripted_turns``): what they measure, and that the attacker's network reads
+them where asked, the team's never."""
 
 import numpy as np
 import torch
@@ -10,7 +11,8 @@ from envs.kinematics import heading_vectors
 from envs.observations import observe
 from league.config import load_config
 from league.rllib.bridge import learner_spec
-from league.rllib.modules import HeadingCosines
+from envs.scripted import ScriptedPlayer
+from league.rllib.modules import HeadingCosines, ScriptedTurns
 
 
 def unit(v: np.ndarray) -> np.ndarray:
@@ -58,3 +60,24 @@ def test_only_the_attackers_network_reads_them():
     with torch.no_grad():
         cosines = net[0](attacker.actor_features(obs))[:, -2:]
     torch.testing.assert_close(cosines, torch.tensor([[1.0, 0.0], [-1.0, 0.0]]))
+
+
+def test_the_scripted_turns_are_lead_intercepts_and_the_apollonius_attackers_read_after_the_cosines():
+    run = load_config("selfplay_league", ["ppo.attacker_heading_cosines=true", "ppo.attacker_scripted_turns=true"])
+    attacker, team = learner_spec(run, "attacker", reward_method=2).build(), learner_spec(run, "team").build()
+    features = attacker.pi.net[0]  # lead intercept's prior plus this network
+    assert [type(part) for part in features] == [HeadingCosines, ScriptedTurns]
+    assert attacker.pi.net[1].in_features == attacker.actor_inputs + 2 + 4
+    assert not any(isinstance(layer, ScriptedTurns) for layer in team.pi.modules())
+    rng = np.random.default_rng(0)
+    game = BatchedGame(run.game, 1024)
+    game.reset(rng)
+    own = observe(run.game, game.positions, game.headings, np.ones(1024), agents=[ATTACKER])[0]
+    with torch.no_grad():
+        out = features(torch.from_numpy(own)).numpy()
+    np.testing.assert_array_equal(out[:, : own.shape[1]], own)
+    with torch.no_grad():
+        np.testing.assert_array_equal(out[:, own.shape[1] : own.shape[1] + 2], HeadingCosines()(torch.from_numpy(own))[:, -2:].numpy())
+    # float32 observations: the turns agree with the float64 scripted players to ~1e-6 (tests/rllib/test_priors.py).
+    np.testing.assert_allclose(out[:, -4:-2], ScriptedPlayer("attacker", "lead_intercept").act(game), atol=1e-4)
+    np.testing.assert_allclose(out[:, -2:], ScriptedPlayer("attacker", "apollonius").act(game), atol=1e-4)

@@ -52,9 +52,14 @@ def assert_plays(module, run, game, agent, name):
     assert (np.abs(expected) < 1).mean() > 0.4 and np.abs(expected).max() == 1.0  # turns both within and at the limits
 
 
-def test_an_attacker_with_the_prior_and_a_silent_network_plays_lead_intercept():
-    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept"])
-    assert_plays(silence(attacker_with_prior(run)), run, turned_anywhere(run), ATTACKER, "lead_intercept")
+@pytest.mark.parametrize("prior", ["lead_intercept", "apollonius"])
+def test_an_attacker_with_a_prior_and_a_silent_network_plays_that_scripted_attacker(prior):
+    run = load_config("selfplay_league", [f"ppo.attacker_prior={prior}"])
+    game = turned_anywhere(run)
+    if prior == "apollonius":  # it turns otherwise than lead intercept in many of these games
+        lead, apollonius = (ScriptedPlayer("attacker", name).act(game) for name in ("lead_intercept", "apollonius"))
+        assert (np.abs(apollonius - lead).max(axis=1) > 1e-3).mean() > 0.2
+    assert_plays(silence(attacker_with_prior(run)), run, game, ATTACKER, prior)
 
 
 def test_a_team_with_the_prior_and_a_silent_network_flies_t_home_and_d_at_a():
@@ -149,9 +154,9 @@ def test_the_gated_penalty_weighs_only_the_steps_before_t_turns_away():
 
 @pytest.mark.parametrize("fmt", ["export", "torchscript", "onnx"])
 @pytest.mark.parametrize("side", ["attacker", "team"])
-def test_the_priors_and_the_heading_cosines_travel_in_every_export_format(tmp_path, fmt, side):
-    run = load_config("selfplay_league", ["ppo.attacker_prior=lead_intercept", "ppo.attacker_heading_cosines=true",
-                                          "ppo.team_prior=avoid_oncoming_attacker+pure_pursuit"])
+def test_the_priors_and_the_attackers_features_travel_in_every_export_format(tmp_path, fmt, side):
+    run = load_config("selfplay_league", ["ppo.attacker_prior=apollonius", "ppo.attacker_heading_cosines=true",
+                                          "ppo.attacker_scripted_turns=true", "ppo.team_prior=avoid_oncoming_attacker+pure_pursuit"])
     module = learner_spec(run, side, reward_method=2 if side == "attacker" else None).build()
     rng = np.random.default_rng(1)
     game = BatchedGame(run.game, 256)
