@@ -98,7 +98,8 @@ class PPOSettings(Strict):
     what cost: [learning.md](results/learning.md)."""
     attacker_prior: Literal["none", "lead_intercept", "apollonius"] = "none"
     """``lead_intercept``: the policy mean is lead intercept's turn plus the network's output, so the untrained attacker
-    plays lead intercept; ``apollonius``: the same with the Apollonius attacker's turn; ``none``: the network's. Needs ``game.observation: rich``, ``game.action_mode: relative``."""
+    plays lead intercept; ``apollonius``: the same with the Apollonius attacker's turn; ``none``: the network's.
+    Needs ``game.observation: rich``, ``game.action_mode: relative``."""
     team_prior: Literal["none", "straight+pure_pursuit", "avoid_attacker+pure_pursuit",
                         "avoid_oncoming_attacker+pure_pursuit"] = "none"
     """A scripted team (``envs.scripted``) whose turn plus the team's network output is its policy mean, so untrained it

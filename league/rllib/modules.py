@@ -98,6 +98,15 @@ def turn_toward(aim: torch.Tensor, own: torch.Tensor, max_yaw_change: float, max
     return torch.stack((yaw_turn / max_yaw_change, pitch_turn / max_pitch_change), dim=-1).clamp(-1.0, 1.0)
 
 
+def lead_point(r: torch.Tensor, u: torch.Tensor, speed: float) -> torch.Tensor:
+    """Where a chaser at ``speed`` meets a target at ``r`` from it moving at velocity ``u``
+    (``envs.geometry.lead_intercept``: the positive root of ``|r + u s| = speed s``), relative to the chaser."""
+    ru = (r * u).sum(-1)
+    margin = speed**2 - (u * u).sum(-1)
+    meeting = (ru + torch.sqrt(ru * ru + margin * (r * r).sum(-1))) / margin
+    return r + u * meeting.unsqueeze(-1)
+
+
 class LeadInterceptTurn(nn.Module):
     """Lead intercept's action (``envs.scripted``: fly at the point where T, at its current
     velocity, is met) from the attacker's ``rich`` observation alone: T's position relative to
@@ -117,12 +126,7 @@ class LeadInterceptTurn(nn.Module):
         own = own.float()
         r = own[..., self.t : self.t + 3]  # T - A
         u = own[..., self.t_heading : self.t_heading + 3] * self.v_targeter  # T's velocity
-        # envs.geometry.intercept_time: the positive root of |r + u t| = v_A t.
-        ru = (r * u).sum(-1)
-        margin = self.v_attacker**2 - (u * u).sum(-1)
-        t = (ru + torch.sqrt(ru * ru + margin * (r * r).sum(-1))) / margin
-        aim = r + u * t.unsqueeze(-1)
-        return turn_toward(aim, own, self.max_yaw_change, self.max_pitch_change)
+        return turn_toward(lead_point(r, u, self.v_attacker), own, self.max_yaw_change, self.max_pitch_change)
 
 
 class ApolloniusTurn(nn.Module):
@@ -162,12 +166,7 @@ class ApolloniusTurn(nn.Module):
         first = torch.minimum(rho, flight)
         distances = first.unsqueeze(-1) + self.along * (flight - first).unsqueeze(-1)  # (..., K)
         path_home = t.unsqueeze(-2) + distances.unsqueeze(-1) * home.unsqueeze(-2)  # (..., K, 3)
-        # envs.geometry.lead_intercept: the positive root of |t + u s| = v_A s.
-        tu = (t * u).sum(-1)
-        margin = self.v_attacker**2 - (u * u).sum(-1)
-        meeting = (tu + torch.sqrt(tu * tu + margin * (t * t).sum(-1))) / margin
-        lead = t + u * meeting.unsqueeze(-1)
-        aims = torch.cat((lead.unsqueeze(-2), path_home), dim=-2)  # (..., 1 + K, 3)
+        aims = torch.cat((lead_point(t, u, self.v_attacker).unsqueeze(-2), path_home), dim=-2)  # (..., 1 + K, 3)
         path = self.steps.unsqueeze(-1) * aims.unsqueeze(-2)  # (..., 1 + K, P, 3): A's straight approach
         d_time = (torch.linalg.vector_norm(path - d.unsqueeze(-2).unsqueeze(-2), dim=-1) - self.defender_radius) / self.v_defender
         a_time = torch.linalg.vector_norm(path, dim=-1) / self.v_attacker
@@ -282,21 +281,25 @@ PRIORS = {
 }
 
 
+class AppendedFeatures(nn.Sequential):
+    """Feature modules one after the other; each appends its numbers to the observation's end, so the
+    blocks that the next one reads stay in place."""
+
+    def __init__(self, *parts: nn.Module):
+        super().__init__(*parts)
+        self.size = sum(part.size for part in parts)
+
+
 def appended_features(settings: ActorCriticSettings) -> nn.Module | None:
-    """The numbers the actor's network reads after the observation (each appends its own to the observation's
-    end, so the blocks that the next one reads stay in place), or ``None``."""
+    """The numbers the actor's network reads after the observation, or ``None``."""
     parts: list[nn.Module] = []
     if settings.heading_cosines:
         parts.append(HeadingCosines())
     if settings.scripted_turns:
         parts.append(ScriptedTurns(settings.game))
-    if not parts:
-        return None
-    if len(parts) == 1:
-        return parts[0]
-    features = nn.Sequential(*parts)
-    features.size = sum(part.size for part in parts)
-    return features
+    if len(parts) > 1:
+        return AppendedFeatures(*parts)
+    return parts[0] if parts else None  # one module alone, as before there were two
 
 
 class ActorCriticModule(TorchRLModule, ValueFunctionAPI):

@@ -9,9 +9,9 @@ from envs.agents import ATTACKER, DEFENDER, TARGETER
 from envs.core import BatchedGame
 from envs.kinematics import heading_vectors
 from envs.observations import observe
+from envs.scripted import ScriptedPlayer
 from league.config import load_config
 from league.rllib.bridge import learner_spec
-from envs.scripted import ScriptedPlayer
 from league.rllib.modules import HeadingCosines, ScriptedTurns
 
 
